@@ -1,0 +1,33 @@
+"""The one place where Numba is configured.
+
+Every kernel in granpack is compiled through :func:`jit` so that caching, fastmath and
+parallelism are decided here only. Kernels are compiled on first call and cached on disk
+(``cache=True``), so the second process that imports a kernel pays no compilation.
+"""
+
+from __future__ import annotations
+
+import numba
+
+__all__ = ["jit", "prange"]
+
+prange = numba.prange
+
+
+def jit(func=None, *, parallel: bool = False, fastmath: bool = False):
+    """Compile ``func`` in nopython mode with on-disk caching.
+
+    Args:
+        func: the Python function to compile (decorator use without arguments).
+        parallel: allow ``prange`` loops (thread-parallel); off by default because the
+            engine is deterministic and the target machines have few cores.
+        fastmath: allow reassociation of floating-point operations; off by default so
+            results are bit-reproducible run to run.
+    """
+
+    def wrap(f):
+        return numba.njit(cache=True, parallel=parallel, fastmath=fastmath, nogil=True)(f)
+
+    if func is None:
+        return wrap
+    return wrap(func)

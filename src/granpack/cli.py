@@ -1,0 +1,98 @@
+"""The ``granpack`` command.
+
+Every command turns bad input (:class:`~granpack.errors.InputError`,
+:class:`~granpack.shapes.ShapeError`) into a one-line ``error: ...`` on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from granpack.errors import InputError
+from granpack.shapes import ShapeError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dense random packings of rigid grains (NSCD).")
+
+
+def _not_yet(what: str) -> None:
+    raise InputError(f"'{what}' is not available yet in this version of granpack")
+
+
+@app.command()
+def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None:
+    """Validate CONFIG and print the mixture table."""
+    _not_yet("check")
+
+
+@app.command()
+def demo(out: Path = typer.Option(Path("granpack-demo"), "--out", help="Output folder.")) -> None:
+    """A small complete packing (about 300 isometric pinacoids), settled and analysed."""
+    _not_yet("demo")
+
+
+@app.command()
+def run(
+    config: Path = typer.Argument(..., help="Run config (TOML)."),
+    out: Path = typer.Option(..., "--out", help="Output folder."),
+    resume: bool = typer.Option(False, "--resume", help="Continue from the last checkpoint."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+) -> None:
+    """One packing to equilibrium."""
+    _not_yet("run")
+
+
+@app.command()
+def analyze(run_dir: Path = typer.Argument(..., help="A run folder holding final.gsd.")) -> None:
+    """Analyse a packing: writes RUN_DIR/analysis.json and prints a table."""
+    _not_yet("analyze")
+
+
+@app.command()
+def campaign(
+    spec: Path = typer.Argument(..., help="Campaign spec (TOML)."),
+    out: Path = typer.Option(..., "--out", help="Output folder."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
+    workers: Optional[int] = typer.Option(None, "--workers", help="Workers of the local Dask cluster."),
+) -> None:
+    """A sweep of mixtures x replicas; rerunning skips finished runs."""
+    _not_yet("campaign")
+
+
+@app.command()
+def figures(run_dir: Path = typer.Argument(..., help="A run or campaign folder.")) -> None:
+    """PNG/SVG figures for a run or a campaign."""
+    _not_yet("figures")
+
+
+@app.command()
+def export(
+    run_dir: Path = typer.Argument(..., help="A run folder."),
+    format: str = typer.Option("vtk", "--format", help="vtk or png."),
+) -> None:
+    """Files for ParaView (vtk) or a rendered picture (png)."""
+    _not_yet("export")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the typer app, mapping input errors to exit status 2."""
+    try:
+        app(args=argv, standalone_mode=False)
+    except (InputError, ShapeError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    except typer.Exit as exc:  # --help and friends
+        raise SystemExit(exc.exit_code) from None
+    except Exception as exc:  # click usage errors (bad option) also exit 2
+        import click
+
+        if isinstance(exc, click.exceptions.ClickException):
+            exc.show()
+            raise SystemExit(exc.exit_code) from None
+        if isinstance(exc, click.exceptions.Abort):
+            raise SystemExit(130) from None
+        raise
+    raise SystemExit(0)
