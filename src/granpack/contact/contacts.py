@@ -38,6 +38,8 @@ class ContactSet:
         point_start: ``(M+1,)`` int64 CSR offsets into the point arrays.
         point: ``(P, 3)`` contact points (world), d.
         gap: ``(P,)`` signed gaps, d.
+        impulse: ``(P, 3)`` world impulse on body i over the last step (set by the solver;
+            ``None`` before solving); the force is ``impulse / time_step``.
     """
 
     body_i: np.ndarray
@@ -48,6 +50,7 @@ class ContactSet:
     point_start: np.ndarray
     point: np.ndarray
     gap: np.ndarray
+    impulse: np.ndarray | None = None
 
     @classmethod
     def empty(cls) -> "ContactSet":
@@ -60,6 +63,7 @@ class ContactSet:
             point_start=np.zeros(1, np.int64),
             point=np.zeros((0, 3)),
             gap=np.zeros(0),
+            impulse=np.zeros((0, 3)),
         )
 
     @property
