@@ -1,0 +1,450 @@
+"""Run configuration: the TOML schema of DESIGN.md as validated pydantic models.
+
+Units: lengths in d (the largest grain's circumscribed diameter), times in sqrt(d/g).
+
+Every model forbids unknown keys and is strict about types (``n_particles = 3.0`` or
+``size = "1"`` are errors; an integer is accepted where a number is expected). Every error is
+reported by :func:`load_config` / :func:`load_config_dict` as one
+:class:`~granpack.errors.InputError` line naming the source and the field path, e.g.::
+
+    config.toml: populations[1].size: must be > 0 (got -1)
+
+A :class:`RunConfig` is fully resolved once validated (population names derived, pinacoid aspect
+filled in); :meth:`RunConfig.to_toml` writes it back as TOML that :func:`load_config` reads into an
+equal object.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any, Literal, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, ValidationInfo, field_validator
+
+from granpack.errors import InputError
+from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Sphere, polyhedron_of_size
+
+__all__ = [
+    "AUTO_ALERT_FRACTION",
+    "SHARE_TOLERANCE",
+    "PopulationConfig",
+    "SolverConfig",
+    "EquilibriumConfig",
+    "DepositConfig",
+    "OutputConfig",
+    "RunConfig",
+    "load_config",
+    "load_config_dict",
+]
+
+#: automatic alert distance, as a fraction of the largest grain size (PHYSICS.md §2.11: 0.02-0.05)
+AUTO_ALERT_FRACTION = 0.02
+#: the volume shares of the populations must sum to 1 within this tolerance
+SHARE_TOLERANCE = 1e-6
+
+_NAME_PATTERN = re.compile(r"^[\w.+-][\w .+-]{0,63}$")
+
+_Number = Annotated[float, Strict()]
+# TOML arrays arrive as lists: accept them for tuple fields, keep the items strict.
+_Pair = Annotated[tuple[_Number, _Number], Strict(False)]
+_Point = Annotated[tuple[_Number, _Number, _Number], Strict(False)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
+
+
+class PopulationConfig(_Model):
+    """One grain population: a shape at one size and its share of the solid volume."""
+
+    shape: Literal["sphere", "pinacoid", "polyhedron"] = Field(
+        description='Grain shape: "sphere", "pinacoid" or "polyhedron" (then give vertices).'
+    )
+    size: _Number = Field(
+        gt=0,
+        description="Circumscribed diameter, d: the sphere diameter, sqrt(L^2 + G^2) for a pinacoid.",
+    )
+    volume_fraction: _Number = Field(
+        ge=0, le=1, description="Share of the total solid volume; the shares of all populations sum to 1."
+    )
+    aspect: Annotated[Optional[_Pair], Field(validate_default=True)] = Field(
+        default=None,
+        description="Pinacoid only: [L/G, G/E] (elongation, flatness), each >= 1; default [1, 1] (isometric).",
+    )
+    vertices: Annotated[Optional[tuple[_Point, ...]], Strict(False), Field(validate_default=True)] = Field(
+        default=None,
+        description="Polyhedron only (required there): [[x, y, z], ...] of a convex body, any scale "
+        "(it is scaled to `size`).",
+    )
+    name: Annotated[Optional[str], Field(validate_default=True)] = Field(
+        default=None,
+        description='Label in tables and outputs; default derived from shape, size and aspect, e.g. "pinacoid-1-1x1".',
+    )
+
+    @field_validator("aspect")
+    @classmethod
+    def _check_aspect(cls, aspect: tuple[float, float] | None, info: ValidationInfo) -> tuple[float, float] | None:
+        shape = info.data.get("shape")
+        if shape != "pinacoid":
+            if aspect is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'pinacoid' (this population is a {shape})")
+            return aspect
+        if aspect is None:
+            return (1.0, 1.0)
+        if not (aspect[0] >= 1.0 and aspect[1] >= 1.0):
+            raise ValueError(f"[L/G, G/E] must both be >= 1 (got [{aspect[0]:g}, {aspect[1]:g}])")
+        try:
+            Pinacoid.from_size(1.0, *aspect)
+        except ShapeError as exc:
+            raise ValueError(str(exc)) from None
+        return aspect
+
+    @field_validator("vertices")
+    @classmethod
+    def _check_vertices(cls, vertices: tuple | None, info: ValidationInfo) -> tuple | None:
+        shape = info.data.get("shape")
+        if shape != "polyhedron":
+            if vertices is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'polyhedron' (this population is a {shape})")
+            return vertices
+        if vertices is None:
+            raise ValueError("required for shape 'polyhedron': a list of [x, y, z] vertices of a convex body")
+        try:
+            ConvexPolyhedron(vertices)
+        except ShapeError as exc:
+            raise ValueError(str(exc)) from None
+        return vertices
+
+    @field_validator("name")
+    @classmethod
+    def _derive_name(cls, name: str | None, info: ValidationInfo) -> str | None:
+        if name is not None:
+            if not _NAME_PATTERN.match(name):
+                raise ValueError(
+                    f"must be 1 to 64 letters, digits, spaces, '_', '.', '+' or '-', not starting with a space (got {name!r})"
+                )
+            return name
+        shape, size = info.data.get("shape"), info.data.get("size")
+        if shape is None or size is None:
+            return None  # another field is invalid and is reported instead
+        derived = f"{shape}-{size:g}"
+        aspect = info.data.get("aspect")
+        if shape == "pinacoid" and aspect is not None:
+            derived += f"-{aspect[0]:g}x{aspect[1]:g}"
+        return derived
+
+    def make_shape(self) -> Shape:
+        """The grain shape at this population's size (body frame, lengths in d).
+
+        Returns:
+            ``Sphere(size)``, ``Pinacoid.from_size(size, *aspect)`` or
+            ``polyhedron_of_size(vertices, size)``.
+        """
+        if self.shape == "sphere":
+            return Sphere(self.size)
+        if self.shape == "pinacoid":
+            return Pinacoid.from_size(self.size, *self.aspect, name=self.name)
+        return polyhedron_of_size(self.vertices, self.size, name=self.name)
+
+
+class SolverConfig(_Model):
+    """Time stepping (Moreau-Jean theta scheme) and the NLGS contact solver (PHYSICS.md §2)."""
+
+    time_step: _Number = Field(default=5e-3, gt=0, description="Time step h, sqrt(d/g).")
+    friction: _Number = Field(default=0.0, ge=0, description="Coulomb friction coefficient mu (0: frictionless).")
+    restitution: _Number = Field(default=0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
+    tolerance: _Number = Field(default=1e-4, gt=0, description="NLGS convergence tolerance (LMGC90 'Quad' norm, §2.7).")
+    max_iterations: int = Field(default=2000, ge=1, description="Most NLGS sweeps per time step.")
+    theta: _Number = Field(default=0.5, ge=0.5, le=1, description="Theta of the Moreau-Jean scheme, in [0.5, 1].")
+    alert_distance: Optional[_Number] = Field(
+        default=None,
+        gt=0,
+        description=f"Gap below which a pair is a contact candidate, d; unset: automatic, "
+        f"{AUTO_ALERT_FRACTION:g} x the largest grain size.",
+    )
+    check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
+
+
+class EquilibriumConfig(_Model):
+    """When a packing counts as at rest (PHYSICS.md §5b) and how long to wait for it."""
+
+    max_time: _Number = Field(
+        default=200.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g)."
+    )
+    force_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |F_p| / (d_p^2 P) for every grain.")
+    torque_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |T_p| / (d_p^3 P) for every grain.")
+    kinetic_tolerance: _Number = Field(
+        default=1e-8, gt=0, description="Bound on the kinetic energy per grain / (d^3 P)."
+    )
+    wall_tolerance: _Number = Field(
+        default=1e-4, gt=0, description="Bound on |weight - wall force| / weight (global vertical balance)."
+    )
+    window: int = Field(default=5, ge=1, description="Consecutive checks that must all pass.")
+    check_interval: _Number = Field(default=0.25, gt=0, description="Simulated time between two checks, sqrt(d/g).")
+
+
+class DepositConfig(_Model):
+    """Geometric pluviation of the grains' circumscribed spheres (PHYSICS.md §4)."""
+
+    method: Literal["drop", "lmgc"] = Field(
+        default="drop",
+        description='"drop": random drop and roll (§4.2); "lmgc": lowest three-support position, as '
+        "LMGC90's depositInBox3D (§4.3).",
+    )
+    lateral: Literal["walls", "periodic"] = Field(
+        default="walls", description='Lateral boundaries during the deposit: "walls" or "periodic".'
+    )
+
+
+class OutputConfig(_Model):
+    """What a run writes besides its final packing."""
+
+    checkpoint_interval: _Number = Field(default=5.0, gt=0, description="Simulated time between checkpoints, sqrt(d/g).")
+    snapshot_interval: _Number = Field(
+        default=0.0, ge=0, description="Simulated time between trajectory snapshots, sqrt(d/g); 0: none."
+    )
+
+
+class RunConfig(_Model):
+    """One packing: the grains, the cell, and the solver, equilibrium, deposit and output settings.
+
+    ``lateral_size`` is declared after ``populations`` and ``solver`` because its check uses them.
+    """
+
+    seed: int = Field(default=1, ge=0, description="Seed of the random generator (deposit, orientations).")
+    n_particles: int = Field(default=3000, ge=1, description="Number of grains N.")
+    populations: Annotated[tuple[PopulationConfig, ...], Strict(False)] = Field(
+        min_length=1, description="The grain populations ([[populations]] tables)."
+    )
+    solver: SolverConfig = Field(default_factory=SolverConfig, description="[solver] table.")
+    lateral_size: Annotated[_Number, Field(validate_default=True)] = Field(
+        default=8.0, gt=0, description="Side of the square periodic cell, d."
+    )
+    equilibrium: EquilibriumConfig = Field(default_factory=EquilibriumConfig, description="[equilibrium] table.")
+    deposit: DepositConfig = Field(default_factory=DepositConfig, description="[deposit] table.")
+    output: OutputConfig = Field(default_factory=OutputConfig, description="[output] table.")
+
+    @field_validator("populations")
+    @classmethod
+    def _check_shares(cls, populations: tuple[PopulationConfig, ...]) -> tuple[PopulationConfig, ...]:
+        total = math.fsum(p.volume_fraction for p in populations)
+        if abs(total - 1.0) > SHARE_TOLERANCE:
+            shares = ", ".join(f"{p.volume_fraction:g}" for p in populations)
+            raise ValueError(f"volume_fraction values must sum to 1 (got {shares}: sum {total:.9g})")
+        seen: dict[str, int] = {}
+        for k, p in enumerate(populations):
+            if p.name in seen:
+                raise ValueError(
+                    f"populations[{seen[p.name]}] and populations[{k}] have the same name {p.name!r}; give them distinct names"
+                )
+            seen[p.name] = k
+        return populations
+
+    @field_validator("lateral_size")
+    @classmethod
+    def _check_lateral(cls, lateral_size: float, info: ValidationInfo) -> float:
+        populations, solver = info.data.get("populations"), info.data.get("solver")
+        if populations is None or solver is None:
+            return lateral_size  # reported elsewhere
+        largest = max(p.size for p in populations)
+        alert = _alert_distance(solver, largest)
+        minimum = 2.0 * (largest + alert)
+        if not lateral_size > minimum:
+            raise ValueError(
+                f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
+                f"pair interacts through at most one periodic image (PHYSICS.md §2.10) (got {lateral_size:g})"
+            )
+        return lateral_size
+
+    @property
+    def largest_size(self) -> float:
+        """Largest circumscribed diameter over the populations, d."""
+        return max(p.size for p in self.populations)
+
+    @property
+    def resolved_alert_distance(self) -> float:
+        """The alert distance in use, d: ``solver.alert_distance``, or automatic if unset."""
+        return _alert_distance(self.solver, self.largest_size)
+
+    def with_seed(self, seed: int) -> "RunConfig":
+        """This config with another seed.
+
+        Raises:
+            InputError: ``seed`` is not an integer >= 0.
+        """
+        return _validate({**self.model_dump(), "seed": seed}, None)
+
+    def to_toml(self) -> str:
+        """The fully resolved config as TOML (every default written, each key with its description).
+
+        Keys left unset on purpose (``solver.alert_distance`` when automatic) are written as a
+        comment. :func:`load_config_dict` of the parsed text gives an object equal to ``self``.
+        """
+        lines = [
+            "# granpack run config, fully resolved (every default filled in).",
+            "# Lengths in d (largest grain's circumscribed diameter), times in sqrt(d/g).",
+            "",
+        ]
+        lines += _toml_keys(self, ("seed", "n_particles", "lateral_size"))
+        for population in self.populations:
+            lines += ["", "[[populations]]"]
+            keys = [k for k in PopulationConfig.model_fields if getattr(population, k) is not None]
+            lines += _toml_keys(population, ["name"] + [k for k in keys if k != "name"])
+        for table in ("solver", "equilibrium", "deposit", "output"):
+            model = getattr(self, table)
+            lines += ["", f"[{table}]"] + _toml_keys(model, type(model).model_fields)
+        return "\n".join(lines) + "\n"
+
+
+def _alert_distance(solver: SolverConfig, largest_size: float) -> float:
+    """``solver.alert_distance`` or, if unset, ``AUTO_ALERT_FRACTION * largest_size`` (d)."""
+    if solver.alert_distance is not None:
+        return solver.alert_distance
+    return AUTO_ALERT_FRACTION * largest_size
+
+
+def _toml_value(value: Any) -> str:
+    """One TOML value: bool, int, finite float, str, or a (nested) array of them."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # names are restricted to characters JSON and TOML escape alike
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def _toml_keys(model: BaseModel, keys) -> list[str]:
+    """``# description`` + ``key = value`` lines; a ``None`` value becomes a commented-out key."""
+    fields = type(model).model_fields
+    lines = []
+    for key in keys:
+        value = getattr(model, key)
+        lines.append(f"# {fields[key].description}")
+        lines.append(f"# {key} = (unset)" if value is None else f"{key} = {_toml_value(value)}")
+    return lines
+
+
+def _field_path(loc: tuple) -> str:
+    """``("populations", 1, "size")`` -> ``"populations[1].size"``."""
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+def _shown(value: Any) -> str:
+    """A short rendering of a bad input value for an error message."""
+    if isinstance(value, str):
+        text = repr(value)
+    elif isinstance(value, (list, tuple, dict, bool)) or value is None:
+        text = json.dumps(value, default=str)
+    else:
+        text = str(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _allowed_keys(loc: tuple) -> list[str]:
+    """Keys allowed in the table that holds the unknown key at ``loc``."""
+    model: type[BaseModel] = RunConfig
+    for part in loc[:-1]:
+        if isinstance(part, int):
+            continue
+        annotation = model.model_fields[part].annotation
+        model = PopulationConfig if part == "populations" else annotation
+    return list(model.model_fields)
+
+
+def _describe(error: dict) -> tuple[tuple, str]:
+    """(field location, one-line message) for one pydantic error."""
+    loc, kind, ctx, value = tuple(error["loc"]), error["type"], error.get("ctx", {}), error.get("input")
+    got = f" (got {_shown(value)})"
+    if kind == "extra_forbidden":
+        return loc, f"unknown key (allowed: {', '.join(_allowed_keys(loc))})"
+    if kind == "missing":
+        if loc and isinstance(loc[-1], int):  # a too short [x, y, z] or [L/G, G/E]
+            return loc[:-1], f"too few numbers (got {_shown(value)})"
+        return loc, "required key is missing"
+    messages = {
+        "greater_than": lambda: f"must be > {ctx.get('gt'):g}{got}",
+        "greater_than_equal": lambda: f"must be >= {ctx.get('ge'):g}{got}",
+        "less_than": lambda: f"must be < {ctx.get('lt'):g}{got}",
+        "less_than_equal": lambda: f"must be <= {ctx.get('le'):g}{got}",
+        "literal_error": lambda: f"must be {ctx.get('expected')}{got}",
+        "float_type": lambda: f"must be a number{got}",
+        "finite_number": lambda: f"must be a finite number{got}",
+        "int_type": lambda: f"must be an integer{got}",
+        "int_from_float": lambda: f"must be an integer{got}",
+        "string_type": lambda: f"must be a string{got}",
+        "tuple_type": lambda: f"must be an array{got}",
+        "model_type": lambda: f"must be a table{got}",
+        "dict_type": lambda: f"must be a table{got}",
+        "too_short": lambda: f"needs at least {ctx.get('min_length')} item(s){got}",
+        "too_long": lambda: f"takes at most {ctx.get('max_length')} item(s){got}",
+        "value_error": lambda: str(error["msg"]).removeprefix("Value error, "),
+    }
+    return loc, messages.get(kind, lambda: f"{error['msg']}{got}")()
+
+
+def _validate(data: Any, source: str | None) -> RunConfig:
+    prefix = f"{source}: " if source else ""
+    if not isinstance(data, dict):
+        raise InputError(f"{prefix}must be a table of config keys (got {type(data).__name__})")
+    try:
+        return RunConfig.model_validate(data)
+    except ValidationError as exc:
+        loc, message = _describe(exc.errors(include_url=False)[0])
+        where = f"{_field_path(loc)}: " if loc else ""
+        raise InputError(" ".join(f"{prefix}{where}{message}".split())) from None
+
+
+def load_config_dict(data: dict, source: str = "<dict>") -> RunConfig:
+    """Validate a config given as a dict (parsed TOML).
+
+    Args:
+        data: the config keys, as :func:`tomllib.loads` returns them.
+        source: what the data came from, first in error messages (a file name, a campaign entry).
+
+    Raises:
+        InputError: one line ``SOURCE: FIELD.PATH: what is wrong``.
+    """
+    return _validate(data, source)
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read and validate a run config file (TOML).
+
+    Args:
+        path: the TOML file.
+
+    Raises:
+        InputError: missing or unreadable file, not TOML, unknown key or bad value; one line naming
+            the file and the field path.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise InputError(f"{path}: is a directory, not a config file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a TOML file (not UTF-8 text)") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(" ".join(f"{path}: not valid TOML: {exc}".split())) from None
+    return _validate(data, str(path))
