@@ -1,0 +1,181 @@
+"""Mixtures: grain populations given by volume share -> particle counts for N grains.
+
+The config gives each population's share ``f_i`` of the solid volume (PHYSICS.md §4.1). With
+particle volumes ``v_i`` (d^3) and counts ``n_i`` summing to N, the achieved share is
+
+.. math:: s_i = \\frac{n_i v_i}{\\sum_j n_j v_j},
+
+and :func:`volume_share_counts` picks the integer counts that make ``s`` closest to ``f``: smallest
+largest error ``max_i |s_i - f_i|``, ties broken by the smallest total error
+``sum_i |s_i - f_i|``. A population with share 0 gets no grain; every other one gets at least
+one grain when N allows it.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from granpack.config import PopulationConfig, RunConfig
+from granpack.shapes import Shape, ShapeTable
+
+__all__ = ["Mixture", "volume_share_counts"]
+
+
+def _errors(counts: np.ndarray, shares: np.ndarray, volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Largest and total share error of each row of ``counts`` ``(C, K)``."""
+    solid = counts * volumes
+    err = np.abs(solid / solid.sum(axis=1, keepdims=True) - shares)
+    return err.max(axis=1), err.sum(axis=1)
+
+
+def _rounded(ideal: np.ndarray, n: int, minimum: int) -> np.ndarray:
+    """Integer counts near ``ideal`` (largest remainders), each >= ``minimum``, summing to ``n``."""
+    counts = np.maximum(np.floor(ideal).astype(np.int64), minimum)
+    order = np.argsort(-(ideal - np.floor(ideal)), kind="stable")
+    k = 0
+    while counts.sum() < n:
+        counts[order[k % len(counts)]] += 1
+        k += 1
+    while counts.sum() > n:
+        counts[int(np.argmax(np.where(counts > minimum, counts - ideal, -np.inf)))] -= 1
+    return counts
+
+
+def volume_share_counts(shares, volumes, n_particles: int) -> np.ndarray:
+    """Particle counts whose volume shares are closest to ``shares``.
+
+    Exact search: a rounding of the continuous solution :math:`n_i \\propto f_i / v_i` gives a
+    largest error ``E``; any composition at least as good has every ``s_i`` in
+    ``[f_i - E, f_i + E]``, which bounds each ``n_i`` to a small window, and the windows are
+    searched exhaustively.
+
+    Args:
+        shares: ``(K,)`` requested volume shares ``f_i >= 0`` summing to 1.
+        volumes: ``(K,)`` particle volumes ``v_i > 0``, d^3.
+        n_particles: N >= 1.
+
+    Returns:
+        ``(K,)`` int64 counts summing to N; 0 where ``f_i = 0``; >= 1 elsewhere if N allows.
+    """
+    shares = np.asarray(shares, dtype=np.float64)
+    volumes = np.asarray(volumes, dtype=np.float64)
+    n = int(n_particles)
+    counts = np.zeros(len(shares), dtype=np.int64)
+    active = np.flatnonzero(shares > 0)
+    if len(active) == 1:
+        counts[active[0]] = n
+        return counts
+    f, v = shares[active], volumes[active]
+    minimum = 1 if n >= len(active) else 0
+    ideal = n * (f / v) / np.sum(f / v)
+    start = _rounded(ideal, n, minimum)
+    worst, total = _errors(start[None, :], f, v)
+    # windows: n_i = N a_i / (a_i + sum_{j != i} a_j) with a = s / v, s within E of f
+    hi_share, lo_share = np.minimum(f + worst[0], 1.0) / v, np.maximum(f - worst[0], 0.0) / v
+    rest_lo, rest_hi = lo_share.sum() - lo_share, hi_share.sum() - hi_share
+    with np.errstate(divide="ignore", invalid="ignore"):
+        upper = np.where(hi_share + rest_lo > 0, n * hi_share / (hi_share + rest_lo), n)
+        lower = np.where(lo_share + rest_hi > 0, n * lo_share / (lo_share + rest_hi), 0)
+    upper = np.minimum(np.ceil(upper).astype(np.int64) + 1, n)
+    lower = np.maximum(np.floor(lower).astype(np.int64) - 1, minimum)
+    best, best_key = start, (worst[0], total[0])
+    outer = [range(lo, hi + 1) for lo, hi in zip(lower[:-2], upper[:-2])]
+    inner = np.arange(lower[-2], upper[-2] + 1)
+    for head in itertools.product(*outer):
+        rows = np.empty((len(inner), len(active)), dtype=np.int64)
+        rows[:, :-2] = head
+        rows[:, -2] = inner
+        rows[:, -1] = n - rows[:, :-1].sum(axis=1)
+        rows = rows[(rows[:, -1] >= lower[-1]) & (rows[:, -1] <= upper[-1])]
+        if not len(rows):
+            continue
+        largest, total = _errors(rows, f, v)
+        k = np.lexsort((total, largest))[0]
+        if (largest[k], total[k]) < best_key:
+            best, best_key = rows[k], (largest[k], total[k])
+    counts[active] = best
+    return counts
+
+
+@dataclass(frozen=True)
+class Mixture:
+    """The populations of a run with their shapes and particle counts.
+
+    Attributes:
+        populations: the ``K`` population configs.
+        shapes: ``K`` shapes at their sizes (body frame, d); shape k is population k.
+        counts: ``(K,)`` int64 particles per population, summing to N.
+    """
+
+    populations: tuple[PopulationConfig, ...]
+    shapes: tuple[Shape, ...]
+    counts: np.ndarray
+
+    @classmethod
+    def from_config(cls, config: RunConfig) -> "Mixture":
+        """Shapes and counts of ``config.populations`` for ``config.n_particles`` grains."""
+        shapes = tuple(p.make_shape() for p in config.populations)
+        counts = volume_share_counts(
+            [p.volume_fraction for p in config.populations], [s.volume for s in shapes], config.n_particles
+        )
+        counts.setflags(write=False)
+        return cls(populations=tuple(config.populations), shapes=shapes, counts=counts)
+
+    @property
+    def n_particles(self) -> int:
+        """N, the total number of grains."""
+        return int(self.counts.sum())
+
+    @property
+    def names(self) -> list[str]:
+        """Population names, in population order."""
+        return [p.name for p in self.populations]
+
+    @property
+    def particle_volumes(self) -> np.ndarray:
+        """``(K,)`` volume of one grain of each population, d^3."""
+        return np.array([s.volume for s in self.shapes])
+
+    @property
+    def requested_shares(self) -> np.ndarray:
+        """``(K,)`` volume shares asked for in the config."""
+        return np.array([p.volume_fraction for p in self.populations])
+
+    @property
+    def achieved_shares(self) -> np.ndarray:
+        """``(K,)`` volume shares of the chosen counts, :math:`n_i v_i / \\sum_j n_j v_j`."""
+        solid = self.counts * self.particle_volumes
+        return solid / solid.sum()
+
+    def table(self) -> list[dict]:
+        """One row per population: ``population``, ``shape``, ``size`` (d), ``aspect`` (pinacoids,
+        else None), ``count``, ``requested_share``, ``achieved_share``, ``particle_volume`` (d^3)."""
+        achieved, volumes = self.achieved_shares, self.particle_volumes
+        return [
+            {
+                "population": p.name,
+                "shape": p.shape,
+                "size": p.size,
+                "aspect": list(p.aspect) if p.aspect is not None else None,
+                "count": int(self.counts[k]),
+                "requested_share": p.volume_fraction,
+                "achieved_share": float(achieved[k]),
+                "particle_volume": float(volumes[k]),
+            }
+            for k, p in enumerate(self.populations)
+        ]
+
+    def particle_populations(self, rng: np.random.Generator) -> np.ndarray:
+        """``(N,)`` int64 population index of each particle, in a random order (PHYSICS.md §4.1).
+
+        Args:
+            rng: the random generator that shuffles the list.
+        """
+        return rng.permutation(np.repeat(np.arange(len(self.counts), dtype=np.int64), self.counts))
+
+    def particle_shape_table(self) -> ShapeTable:
+        """Kernel geometry of the populations; kind k is population k."""
+        return ShapeTable.from_shapes(self.shapes)
