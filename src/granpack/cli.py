@@ -25,7 +25,34 @@ def _not_yet(what: str) -> None:
 @app.command()
 def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None:
     """Validate CONFIG and print the mixture table."""
-    _not_yet("check")
+    from rich.console import Console
+    from rich.table import Table
+    from rich.text import Text
+
+    from granpack.config import load_config
+    from granpack.mixture import Mixture
+
+    cfg = load_config(config)
+    mixture = Mixture.from_config(cfg)
+    table = Table(title=Text(f"{config}: mixture of N = {mixture.n_particles} grains"))
+    for heading in ("population", "shape", "size (d)", "aspect L/G, G/E", "count", "requested share",
+                    "achieved share", "grain volume (d^3)"):
+        table.add_column(heading, justify="left" if heading in ("population", "shape") else "right")
+    for row in mixture.table():
+        aspect = "" if row["aspect"] is None else "{:g}, {:g}".format(*row["aspect"])
+        table.add_row(row["population"], row["shape"], f"{row['size']:.6g}", aspect, str(row["count"]),
+                      f"{row['requested_share']:.6f}", f"{row['achieved_share']:.6f}", f"{row['particle_volume']:.6g}")
+    solver, eq = cfg.solver, cfg.equilibrium
+    console = Console()
+    console.print(table)
+    console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
+                  f"alert distance = {cfg.resolved_alert_distance:g} d"
+                  f"{'' if solver.alert_distance is not None else ' (automatic)'}", markup=False)
+    console.print(f"solver: time step {solver.time_step:g} sqrt(d/g), friction {solver.friction:g}, restitution "
+                  f"{solver.restitution:g}, tolerance {solver.tolerance:g}, max iterations {solver.max_iterations}, "
+                  f"theta {solver.theta:g}, check every {solver.check_every} sweeps", markup=False)
+    console.print(f"equilibrium: max time {eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
+                  f"{cfg.deposit.lateral} lateral boundaries", markup=False)
 
 
 @app.command()
