@@ -1,0 +1,258 @@
+"""Run a campaign on Dask: one task per (mixture, replica), resumable, failures isolated.
+
+Each task runs :func:`granpack.simulation.run_packing` then
+:func:`granpack.analysis.report.analyze_run` in its own run folder ``<out>/<mixture>/seed-<s>``
+(see :mod:`granpack.campaign.store` for what a folder holds). Rerunning a campaign
+
+- skips finished runs (valid ``analysis.json`` for the same run config);
+- only analyses a run whose simulation completed (``summary.json`` and ``final.gsd`` present);
+- resumes a run from its checkpoint when it has one, else starts it afresh;
+- starts afresh a run whose folder was made for another config (its old outputs are removed).
+
+A task that fails is retried once; if it fails again, its traceback is saved as ``error.txt`` in
+its folder and its row in ``runs.csv`` says ``failed``; the other tasks go on.
+
+The tasks run on a :class:`distributed.LocalCluster` of ``workers`` processes with one thread
+each (Numba and BLAS limited to one thread per worker), or on an existing cluster given by its
+scheduler address (e.g. one started by dask-jobqueue); the output folder must then be on a file
+system that the workers share.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Iterator
+
+import pandas as pd
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from granpack.campaign.spec import CampaignSpec, RunSpec
+from granpack.campaign.store import (
+    ANALYSIS_FILE,
+    SUMMARY_FILE,
+    clear_error,
+    is_finished,
+    runs_table,
+    task_matches,
+    write_error,
+    write_tables,
+    write_task,
+)
+from granpack.errors import InputError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+__all__ = ["CampaignReport", "run_campaign", "run_task", "MAX_ATTEMPTS"]
+
+#: attempts per task (the first run and one retry)
+MAX_ATTEMPTS = 2
+#: environment of the local workers: one thread each for Numba, OpenMP and BLAS
+_WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_FINAL_FILE = "final.gsd"
+_CHECKPOINT_GLOB = "checkpoint*"
+
+
+@dataclass(frozen=True)
+class CampaignReport:
+    """What a campaign command did.
+
+    Attributes:
+        n_runs: tasks in the campaign.
+        n_skipped: runs already finished before this call.
+        n_done: runs finished now (computed by this call, or skipped).
+        n_failed: runs that failed twice in this call.
+        runs: the runs table written to ``runs.csv``.
+        summary: the per-mixture table written to ``summary.csv``.
+    """
+
+    n_runs: int
+    n_skipped: int
+    n_done: int
+    n_failed: int
+    runs: pd.DataFrame
+    summary: pd.DataFrame
+
+
+def _clear_outputs(run_dir: Path) -> None:
+    """Remove the outputs of a run made for another config (so none of them is reused)."""
+    for name in (ANALYSIS_FILE, SUMMARY_FILE, _FINAL_FILE):
+        (run_dir / name).unlink(missing_ok=True)
+    for checkpoint in run_dir.glob(_CHECKPOINT_GLOB):
+        if checkpoint.is_file():
+            checkpoint.unlink()
+
+
+def run_task(run: RunSpec, out_dir: str) -> dict:
+    """One campaign task (runs on a worker): simulate as needed, then analyse.
+
+    Args:
+        run: the task.
+        out_dir: the campaign output folder (absolute path, shared with the workers).
+
+    Returns:
+        ``{"status": "done" | "failed", "action": "simulated" | "resumed" | "analysed",
+        "error": last line of the error or None, "wall_time": seconds}``.
+    """
+    run_dir = Path(out_dir) / run.folder
+    start = time.perf_counter()
+    action = "simulated"
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+        from granpack.analysis.report import analyze_run
+        from granpack.config import load_config_dict
+        from granpack.simulation import run_packing
+
+        if task_matches(run_dir, run):
+            if (run_dir / SUMMARY_FILE).is_file() and (run_dir / _FINAL_FILE).is_file():
+                action = "analysed"
+            elif any(run_dir.glob(_CHECKPOINT_GLOB)):
+                action = "resumed"
+        else:
+            _clear_outputs(run_dir)
+            write_task(run_dir, run)
+        config = load_config_dict(run.config, source=run.folder.as_posix())
+        if action != "analysed":
+            run_packing(config, run_dir, resume=action == "resumed", progress=False)
+        analyze_run(run_dir)
+        clear_error(run_dir)
+        return {"status": "done", "action": action, "error": None, "wall_time": time.perf_counter() - start}
+    except Exception as exc:  # a task reports its failure instead of raising: the others go on
+        with contextlib.suppress(OSError):
+            write_error(run_dir, traceback.format_exc())
+        message = " ".join(f"{type(exc).__name__}: {exc}".split())
+        return {"status": "failed", "action": action, "error": message, "wall_time": time.perf_counter() - start}
+
+
+@contextlib.contextmanager
+def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterator[Client]:
+    """A Dask client on the given scheduler, or on a new local cluster of processes."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"--scheduler: cannot connect to {scheduler!r} ({exc})") from None
+        with client:
+            yield client
+        return
+    n_workers = workers if workers is not None else max(1, min(os.cpu_count() or 1, n_tasks))
+    with LocalCluster(
+        n_workers=n_workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+        env=_WORKER_ENV,
+    ) as cluster, Client(cluster) as client:
+        yield client
+
+
+def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
+    """Submit ``todo``, retry failures once, show progress; returns (done, failed) counts."""
+    attempts: dict[Path, int] = {}
+    active: dict = {}
+
+    def submit(run: RunSpec) -> None:
+        attempts[run.folder] = attempts.get(run.folder, 0) + 1
+        key = f"granpack-{run.mixture}-seed-{run.seed}-attempt-{attempts[run.folder]}"
+        active[client.submit(run_task, run, str(out_dir), key=key, pure=False)] = run
+
+    for run in todo:
+        submit(run)
+    done = failed = 0
+    columns = (
+        TextColumn("[bold]campaign"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("done {task.fields[done]}  running {task.fields[running]}  failed {task.fields[failed]}"),
+        TimeElapsedColumn(),
+    )
+    with Progress(*columns, disable=not progress, transient=False) as bar:
+        task = bar.add_task("runs", total=len(todo), done=0, running=0, failed=0)
+        while active:
+            finished = [future for future in active if future.done()]
+            for future in finished:
+                run = active.pop(future)
+                if future.status == "finished":
+                    outcome = future.result()
+                else:  # the task itself could not run (worker lost, unpicklable input, ...)
+                    exc = future.exception()
+                    outcome = {"status": "failed", "error": " ".join(f"{type(exc).__name__}: {exc}".split())}
+                label = run.folder.as_posix()
+                if outcome["status"] == "done":
+                    done += 1
+                    bar.console.print(f"done    {label} ({outcome['action']}, {outcome['wall_time']:.1f} s)")
+                elif attempts[run.folder] < MAX_ATTEMPTS:
+                    bar.console.print(f"retry   {label}: {outcome['error']}")
+                    submit(run)
+                else:
+                    failed += 1
+                    errors[run.folder] = outcome["error"]
+                    bar.console.print(f"[red]failed[/red]  {label}: {outcome['error']}")
+            running = sum(len(keys) for keys in client.processing().values())
+            bar.update(task, completed=done + failed, done=done, running=running, failed=failed)
+            if not finished:
+                time.sleep(0.2)
+    return done, failed
+
+
+def run_campaign(
+    spec: CampaignSpec,
+    out_dir: str | Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+) -> CampaignReport:
+    """Run every unfinished (mixture, replica) of ``spec`` and write the result tables.
+
+    Args:
+        spec: the validated campaign.
+        out_dir: the output folder (created); with ``scheduler``, it must be visible to the
+            workers under the same path.
+        scheduler: address of an existing Dask scheduler (``tcp://host:8786``); ``None`` starts
+            a local cluster.
+        workers: processes of the local cluster (default: CPU count, at most one per task).
+        progress: show a progress bar and one line per finished run.
+
+    Returns:
+        The report with both tables. The tables are written even when interrupted.
+
+    Raises:
+        InputError: bad ``workers``/``scheduler`` combination, or an unreachable scheduler.
+    """
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be >= 1 (got {workers})")
+    if workers is not None and scheduler is not None:
+        raise InputError("--workers applies to the local cluster only; leave it out with --scheduler")
+    out_dir = Path(out_dir).resolve()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if spec.source_text:
+        (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
+    todo = [run for run in spec.runs if not is_finished(out_dir, run)]
+    n_skipped = len(spec.runs) - len(todo)
+    errors: dict[Path, str] = {}
+    done = failed = 0
+    try:
+        if todo:
+            with _client(scheduler, workers, len(todo)) as client:
+                done, failed = _execute(client, todo, out_dir, progress, errors)
+    finally:
+        table = runs_table(out_dir, spec.runs, errors)
+        summary = write_tables(out_dir, table)
+    return CampaignReport(
+        n_runs=len(spec.runs),
+        n_skipped=n_skipped,
+        n_done=n_skipped + done,
+        n_failed=failed,
+        runs=table,
+        summary=summary,
+    )
