@@ -85,8 +85,21 @@ def campaign(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Workers of the local Dask cluster."),
 ) -> None:
-    """A sweep of mixtures x replicas; rerunning skips finished runs."""
-    _not_yet("campaign")
+    """A sweep of mixtures x replicas; rerunning skips finished runs.
+
+    Writes one run folder per (mixture, replica) in OUT, runs.csv, runs.parquet and summary.csv.
+    Exit status 1 when some runs failed (their errors are in runs.csv and their folders).
+    """
+    from granpack.campaign import load_campaign, run_campaign
+
+    report = run_campaign(load_campaign(spec), out, scheduler=scheduler, workers=workers)
+    typer.echo(
+        f"{report.n_runs} runs: {report.n_done} done ({report.n_skipped} already finished), "
+        f"{report.n_failed} failed; tables in {out / 'runs.csv'} and {out / 'summary.csv'}"
+    )
+    if report.n_failed:
+        typer.echo(f"error: {report.n_failed} run(s) failed; see the 'error' column of {out / 'runs.csv'}", err=True)
+        raise typer.Exit(1)
 
 
 @app.command()
