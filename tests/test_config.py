@@ -1,0 +1,276 @@
+"""Run config: schema, defaults, one-line errors naming the field, TOML round trip, examples."""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from granpack.config import (
+    AUTO_ALERT_FRACTION,
+    DepositConfig,
+    EquilibriumConfig,
+    OutputConfig,
+    PopulationConfig,
+    RunConfig,
+    SolverConfig,
+    load_config,
+    load_config_dict,
+)
+from granpack.errors import InputError
+from granpack.shapes import ConvexPolyhedron, Pinacoid, Sphere
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+MODELS = (RunConfig, PopulationConfig, SolverConfig, EquilibriumConfig, DepositConfig, OutputConfig)
+CUBE = [[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]
+
+
+def pinacoids(**extra) -> dict:
+    """A valid bidisperse pinacoid config as parsed TOML, with top-level keys overridden."""
+    return {
+        "populations": [
+            {"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 1.0], "volume_fraction": 0.7},
+            {"shape": "pinacoid", "size": 0.3333333333, "aspect": [1.0, 1.0], "volume_fraction": 0.3},
+        ],
+        **extra,
+    }
+
+
+def with_population(index: int, **keys) -> dict:
+    data = pinacoids()
+    data["populations"][index] = {**data["populations"][index], **keys}
+    return data
+
+
+def error_of(data: dict) -> str:
+    with pytest.raises(InputError) as info:
+        load_config_dict(data, "config.toml")
+    return str(info.value)
+
+
+def test_defaults():
+    cfg = load_config_dict({"populations": [{"shape": "sphere", "size": 1, "volume_fraction": 1}]})
+    assert (cfg.seed, cfg.n_particles, cfg.lateral_size) == (1, 3000, 8.0)
+    s = cfg.solver
+    assert (s.time_step, s.friction, s.restitution, s.tolerance, s.max_iterations, s.theta) == (5e-3, 0, 0, 1e-4, 2000, 0.5)
+    assert s.alert_distance is None and s.check_every == 10
+    e = cfg.equilibrium
+    assert (e.max_time, e.force_tolerance, e.torque_tolerance, e.kinetic_tolerance, e.wall_tolerance) == (
+        200.0, 1e-4, 1e-4, 1e-8, 1e-4)
+    assert (e.window, e.check_interval) == (5, 0.25)
+    assert (cfg.deposit.method, cfg.deposit.lateral) == ("drop", "walls")
+    assert (cfg.output.checkpoint_interval, cfg.output.snapshot_interval) == (5.0, 0.0)
+    assert cfg.populations[0].aspect is None and cfg.populations[0].name == "sphere-1"
+    assert cfg.resolved_alert_distance == pytest.approx(AUTO_ALERT_FRACTION)
+
+
+def test_every_field_is_documented():
+    for model in MODELS:
+        for key, field in model.model_fields.items():
+            assert field.description and len(field.description) > 10, f"{model.__name__}.{key}"
+
+
+def test_pinacoid_defaults_and_derived_names():
+    cfg = load_config_dict(
+        {"populations": [{"shape": "pinacoid", "size": 1, "volume_fraction": 0.5},
+                         {"shape": "pinacoid", "size": 0.5, "aspect": [2, 3], "volume_fraction": 0.5}]}
+    )
+    assert cfg.populations[0].aspect == (1.0, 1.0)
+    assert [p.name for p in cfg.populations] == ["pinacoid-1-1x1", "pinacoid-0.5-2x3"]
+    named = load_config_dict(with_population(1, name="small grains"))
+    assert named.populations[1].name == "small grains"
+
+
+def test_message_names_file_and_field_path():
+    assert error_of(with_population(1, size=-1)) == "config.toml: populations[1].size: must be > 0 (got -1)"
+
+
+@pytest.mark.parametrize(
+    "data, field, words",
+    [
+        (pinacoids(color="red"), "color", "unknown key"),
+        (pinacoids(solver={"timestep": 1e-3}), "solver.timestep", "allowed: time_step"),
+        (with_population(0, shape="cube"), "populations[0].shape", "'sphere', 'pinacoid' or 'polyhedron'"),
+        (with_population(1, size=0), "populations[1].size", "> 0"),
+        (with_population(0, aspect=[0.5, 1.0]), "populations[0].aspect", ">= 1"),
+        (with_population(0, aspect=[1.0, 0.9]), "populations[0].aspect", ">= 1"),
+        (with_population(0, aspect=[1.0]), "populations[0].aspect", "too few"),
+        (with_population(0, shape="sphere"), "populations[0].aspect", "only allowed for shape 'pinacoid'"),
+        (with_population(0, volume_fraction=0.6), "populations", "sum to 1"),
+        (with_population(0, volume_fraction=-0.1), "populations[0].volume_fraction", ">= 0"),
+        (with_population(0, volume_fraction=1.3), "populations[0].volume_fraction", "<= 1"),
+        (pinacoids(populations=[]), "populations", "at least 1"),
+        ({}, "populations", "missing"),
+        (pinacoids(n_particles=0), "n_particles", ">= 1"),
+        (pinacoids(n_particles=3000.0), "n_particles", "integer"),
+        (pinacoids(seed=True), "seed", "integer"),
+        (pinacoids(seed=-1), "seed", ">= 0"),
+        (with_population(0, size="1"), "populations[0].size", "number"),
+        (with_population(0, size=float("nan")), "populations[0].size", "finite"),
+        (pinacoids(lateral_size=2.0), "lateral_size", "PHYSICS.md §2.10"),
+        (pinacoids(solver={"time_step": 0}), "solver.time_step", "> 0"),
+        (pinacoids(solver={"friction": -0.1}), "solver.friction", ">= 0"),
+        (pinacoids(solver={"restitution": 1.5}), "solver.restitution", "<= 1"),
+        (pinacoids(solver={"restitution": -0.5}), "solver.restitution", ">= 0"),
+        (pinacoids(solver={"theta": 0.4}), "solver.theta", ">= 0.5"),
+        (pinacoids(solver={"alert_distance": 0}), "solver.alert_distance", "> 0"),
+        (pinacoids(solver=3), "solver", "table"),
+        (pinacoids(equilibrium={"window": 0}), "equilibrium.window", ">= 1"),
+        (pinacoids(deposit={"method": "rain"}), "deposit.method", "'drop' or 'lmgc'"),
+        (pinacoids(output={"snapshot_interval": -1}), "output.snapshot_interval", ">= 0"),
+        (with_population(1, name="a\nb"), "populations[1].name", "letters"),
+        (with_population(1, size=1.0), "populations", "same name"),
+    ],
+)
+def test_bad_values_give_one_line_naming_the_field(data, field, words):
+    message = error_of(data)
+    assert "\n" not in message
+    assert message.startswith(f"config.toml: {field}: "), message
+    assert words in message
+
+
+@pytest.mark.parametrize(
+    "vertices, words",
+    [
+        (None, "required for shape 'polyhedron'"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 3, 0]], "coplanar"),
+        (CUBE + [[0.5, 0.5, 0.5]], "not an extreme point"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], "at least 4"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0]], "too few numbers"),
+    ],
+)
+def test_bad_polyhedra(vertices, words):
+    population = {"shape": "polyhedron", "size": 1.0, "volume_fraction": 1.0}
+    if vertices is not None:
+        population["vertices"] = vertices
+    message = error_of({"populations": [population]})
+    assert message.startswith("config.toml: populations[0].vertices"), message
+    assert words in message
+
+
+def test_vertices_only_for_polyhedra():
+    assert "only allowed for shape 'polyhedron'" in error_of(with_population(0, vertices=CUBE))
+
+
+def test_lateral_size_rule_uses_largest_grain_and_alert():
+    assert load_config_dict(pinacoids(lateral_size=3.0)).lateral_size == 3.0  # the demo's cell
+    assert load_config_dict(pinacoids(lateral_size=2.05)).lateral_size == 2.05  # 2 (1 + 0.02) = 2.04
+    assert "2.04" in error_of(pinacoids(lateral_size=2.04))
+    assert "= 2.2 d" in error_of(pinacoids(lateral_size=2.1, solver={"alert_distance": 0.1}))
+    big = with_population(0, size=1.4) | {"lateral_size": 2.8}
+    assert error_of(big).startswith("config.toml: lateral_size: must exceed 2 x (largest grain size 1.4")
+
+
+def test_make_shape():
+    cfg = load_config_dict(
+        {"populations": [{"shape": "sphere", "size": 0.5, "volume_fraction": 0.2},
+                         {"shape": "pinacoid", "size": 1.0, "aspect": [2, 3], "volume_fraction": 0.3},
+                         {"shape": "polyhedron", "size": 0.8, "vertices": CUBE, "volume_fraction": 0.5}]}
+    )
+    sphere, pinacoid, cube = (p.make_shape() for p in cfg.populations)
+    assert isinstance(sphere, Sphere) and sphere.diameter == 0.5
+    assert isinstance(pinacoid, Pinacoid) and pinacoid.size == pytest.approx(1.0)
+    assert (pinacoid.elongation, pinacoid.flatness) == pytest.approx((2.0, 3.0))
+    assert isinstance(cube, ConvexPolyhedron) and cube.size == pytest.approx(0.8)
+    assert cube.volume == pytest.approx((0.8 / 3**0.5) ** 3)
+
+
+ROUND_TRIP_CASES = [
+    pinacoids(),
+    pinacoids(seed=7, n_particles=12, lateral_size=5.5,
+              solver={"alert_distance": 0.035, "time_step": 1e-3, "friction": 0.3, "tolerance": 1.666e-4},
+              equilibrium={"max_time": 25.0, "kinetic_tolerance": 3e-9, "window": 2},
+              deposit={"method": "lmgc", "lateral": "periodic"},
+              output={"checkpoint_interval": 1.0, "snapshot_interval": 0.1}),
+    {"populations": [{"shape": "sphere", "size": 1, "volume_fraction": 0.45, "name": "big one"},
+                     {"shape": "polyhedron", "size": 0.7, "vertices": CUBE, "volume_fraction": 0.55}]},
+]
+
+
+@pytest.mark.parametrize("data", ROUND_TRIP_CASES)
+def test_to_toml_round_trip(data, tmp_path):
+    cfg = load_config_dict(data)
+    text = cfg.to_toml()
+    path = tmp_path / "config.toml"
+    path.write_text(text)
+    again = load_config(path)
+    assert again == cfg
+    assert again.to_toml() == text
+
+
+def test_to_toml_writes_every_default():
+    cfg = load_config_dict({"populations": [{"shape": "pinacoid", "size": 1, "volume_fraction": 1}]})
+    parsed = tomllib.loads(cfg.to_toml())
+    assert parsed["populations"] == [
+        {"name": "pinacoid-1-1x1", "shape": "pinacoid", "size": 1.0, "volume_fraction": 1.0, "aspect": [1.0, 1.0]}]
+    for table, model in [("solver", SolverConfig), ("equilibrium", EquilibriumConfig), ("deposit", DepositConfig),
+                         ("output", OutputConfig)]:
+        expected = set(model.model_fields) - ({"alert_distance"} if table == "solver" else set())
+        assert set(parsed[table]) == expected
+    assert {"seed", "n_particles", "lateral_size"} <= set(parsed)
+
+
+def test_with_seed():
+    cfg = load_config_dict(pinacoids())
+    other = cfg.with_seed(42)
+    assert other.seed == 42 and other.populations == cfg.populations and cfg.seed == 1
+    with pytest.raises(InputError, match=r"^seed: must be >= 0"):
+        cfg.with_seed(-3)
+
+
+def test_config_is_frozen():
+    cfg = load_config_dict(pinacoids())
+    with pytest.raises(Exception):
+        cfg.seed = 3
+
+
+def test_file_errors(tmp_path):
+    with pytest.raises(InputError, match=r"nope\.toml: no such file$"):
+        load_config(tmp_path / "nope.toml")
+    with pytest.raises(InputError, match="is a directory"):
+        load_config(tmp_path)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("seed = 1\nn_particles = \n")
+    with pytest.raises(InputError, match=r"bad\.toml: not valid TOML: .*line 2"):
+        load_config(bad)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00seed")
+    with pytest.raises(InputError, match="not UTF-8"):
+        load_config(binary)
+    unknown = tmp_path / "unknown.toml"
+    unknown.write_text('seed = 1\nfoo = 2\n[[populations]]\nshape = "sphere"\nsize = 1.0\nvolume_fraction = 1.0\n')
+    with pytest.raises(InputError, match=r"unknown\.toml: foo: unknown key \(allowed: seed, "):
+        load_config(unknown)
+
+
+EXAMPLE_FILES = sorted(EXAMPLES.glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
+def test_examples_load(path):
+    cfg = load_config(path)
+    assert cfg.n_particles == (300 if path.name == "demo.toml" else 3000)
+    assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
+
+
+def test_examples_readme_lists_every_example_and_key():
+    readme = (EXAMPLES / "README.md").read_text()
+    assert len(EXAMPLE_FILES) >= 8
+    for path in EXAMPLE_FILES:
+        assert f"`{path.name}`" in readme
+    documented = set(re.findall(r"^\| [^|]+ \| `(\w+)` \|", readme, flags=re.MULTILINE))
+    for model in MODELS:
+        for key in model.model_fields:
+            if key not in {"populations", "solver", "equilibrium", "deposit", "output"}:
+                assert key in documented, key
+
+
+def test_example_lateral_sizes_and_families():
+    lateral = {p.name: load_config(p).lateral_size for p in EXAMPLE_FILES}
+    assert lateral["pinacoids-elongated.toml"] == 10.0 and lateral["demo.toml"] == 3.0
+    aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
+               ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
+                "pinacoids-flat-elongated.toml")}
+    assert aspects == {(1.0, 1.0), (2.0, 1.0), (1.0, 3.0), (2.0, 3.0)}
