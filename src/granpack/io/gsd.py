@@ -1,0 +1,241 @@
+"""Packings as GSD files (HOOMD schema; OVITO draws the true grain shapes).
+
+One frame per file. Layout:
+
+- ``configuration/box`` = ``[Lx, Ly, Lz, 0, 0, 0]`` with ``Lz`` = highest grain top + 1 d (GSD has no
+  open boundaries; periodicity is recorded in ``log/granpack/periodic``).
+- GSD wants positions centred in the box, so ``particles/position`` holds ``x - origin`` with
+  ``origin = (Lx/2, Ly/2, Lz/2)`` (stored in ``log/granpack/origin``): the wall z = 0 is at
+  ``-Lz/2`` in the viewer. These schema fields are float32, so the exact double-precision arrays
+  are stored alongside, uncentred, in ``log/granpack/position``, ``log/granpack/orientation`` and
+  ``log/granpack/velocity``; :func:`read_packing` reads those, hence the round trip is exact.
+- ``particles/orientation`` (w, x, y, z), ``particles/typeid`` = shape kind, ``particles/types``
+  (kind names), ``particles/type_shapes`` (``Shape.gsd_shape()``), ``particles/diameter``
+  (circumscribed), ``particles/mass``, ``particles/moment_inertia``, ``particles/velocity``.
+- Per-particle logs (OVITO shows them as properties): ``log/particles/population`` (int64) and
+  ``log/particles/omega`` (float64, body frame).
+- Contacts (:class:`~granpack.contact.ContactSet` arrays, float64/int64):
+  ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``.
+- Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}`` and
+  JSON text stored as uint8 arrays: ``log/granpack/shapes`` (the shape specs that rebuild the
+  :class:`~granpack.shapes.ShapeTable` exactly), ``log/granpack/population_names``,
+  ``log/granpack/metadata``.
+
+Files are written to a temporary name in the same folder and renamed (atomic).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import gsd.hoomd
+import numpy as np
+
+from granpack.box import Box
+from granpack.contact.contacts import ContactSet
+from granpack.errors import InputError
+from granpack.io.json import to_jsonable
+from granpack.packing import Packing
+from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeTable, Sphere
+from granpack.state import ParticleState
+
+__all__ = ["write_packing", "read_packing", "shape_spec", "shape_from_spec"]
+
+#: version of the layout above, stored in ``log/granpack/format``
+FORMAT_VERSION = 1
+
+_CONTACT_FIELDS = ("body_i", "body_j", "shift", "normal", "ctype", "point_start", "point", "gap", "impulse")
+
+
+def shape_spec(shape: Shape) -> dict:
+    """A JSON-able description that :func:`shape_from_spec` turns back into the same shape.
+
+    Pinacoids keep their defining dimensions (rebuilt bit for bit); other polyhedra keep their
+    body-frame vertices; spheres their diameter.
+    """
+    if isinstance(shape, Sphere):
+        return {"type": "sphere", "diameter": shape.diameter}
+    if isinstance(shape, Pinacoid):
+        return {
+            "type": "pinacoid",
+            "length": shape.length,
+            "width": shape.width,
+            "thickness": shape.thickness,
+            "alpha_deg": shape.alpha_deg,
+            "name": shape.name,
+        }
+    if isinstance(shape, ConvexPolyhedron):
+        return {"type": "polyhedron", "vertices": shape.vertices.tolist(), "name": shape.name}
+    raise TypeError(f"cannot store shape {shape!r}")
+
+
+def shape_from_spec(spec: dict) -> Shape:
+    """Inverse of :func:`shape_spec`."""
+    kind = spec["type"]
+    if kind == "sphere":
+        return Sphere(spec["diameter"])
+    if kind == "pinacoid":
+        return Pinacoid(spec["length"], spec["width"], spec["thickness"], spec["alpha_deg"], name=spec["name"])
+    if kind == "polyhedron":
+        return ConvexPolyhedron(np.asarray(spec["vertices"], dtype=np.float64), name=spec["name"])
+    raise ValueError(f"unknown shape type {kind!r}")
+
+
+def _type_names(shapes: tuple[Shape, ...]) -> list[str]:
+    """Unique GSD type names: the shape name (``sphere`` for spheres), suffixed by the kind if repeated."""
+    base = [s.name if isinstance(s, ConvexPolyhedron) else "sphere" for s in shapes]
+    return [b if base.count(b) == 1 else f"{b}-{k}" for k, b in enumerate(base)]
+
+
+def _text(obj) -> np.ndarray:
+    return np.frombuffer(json.dumps(to_jsonable(obj)).encode("utf-8"), dtype=np.uint8).copy()
+
+
+def _untext(arr) -> object:
+    return json.loads(np.asarray(arr, dtype=np.uint8).tobytes().decode("utf-8"))
+
+
+def _frame(packing: Packing) -> gsd.hoomd.Frame:
+    state, contacts, box = packing.state, packing.contacts, packing.box
+    shapes = state.shapes.shapes
+    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
+    lz = max(top, 0.0) + 1.0
+    origin = np.array([0.5 * box.lx, 0.5 * box.ly, 0.5 * lz])
+
+    f = gsd.hoomd.Frame()
+    f.configuration.step = int(packing.metadata.get("step", 0))
+    f.configuration.box = [box.lx, box.ly, lz, 0.0, 0.0, 0.0]
+    f.particles.N = state.n
+    f.particles.types = _type_names(shapes)
+    f.particles.type_shapes = [s.gsd_shape() for s in shapes]
+    f.particles.typeid = state.kind.astype(np.uint32)
+    f.particles.position = (state.position - origin).astype(np.float32)
+    f.particles.orientation = state.quaternion.astype(np.float32)
+    f.particles.velocity = state.velocity.astype(np.float32)
+    f.particles.diameter = (2.0 * state.radius).astype(np.float32)
+    f.particles.mass = state.mass.astype(np.float32)
+    f.particles.moment_inertia = state.inertia.astype(np.float32)
+
+    log = f.log
+    log["particles/population"] = state.population.astype(np.int64)
+    log["particles/omega"] = state.omega.astype(np.float64)
+    for name in _CONTACT_FIELDS:
+        log[f"contacts/{name}"] = np.ascontiguousarray(getattr(contacts, name))
+    log["granpack/format"] = np.array([FORMAT_VERSION], dtype=np.int64)
+    log["granpack/lateral_size"] = np.array([box.lx, box.ly])
+    log["granpack/time"] = np.array([state.time])
+    log["granpack/time_step"] = np.array([packing.time_step])
+    log["granpack/periodic"] = np.array([1, 1, 0], dtype=np.uint8)
+    log["granpack/wall"] = np.array([0.0, 0.0, 1.0, 0.0])  # plane n . x = 0, normal +z
+    log["granpack/origin"] = origin
+    log["granpack/position"] = state.position.astype(np.float64)
+    log["granpack/orientation"] = state.quaternion.astype(np.float64)
+    log["granpack/velocity"] = state.velocity.astype(np.float64)
+    log["granpack/shapes"] = _text([shape_spec(s) for s in shapes])
+    log["granpack/population_names"] = _text(list(packing.population_names))
+    log["granpack/metadata"] = _text(packing.metadata)
+    return f
+
+
+def write_packing(path: str | os.PathLike, packing: Packing) -> Path:
+    """Write ``packing`` as a one-frame GSD file, atomically.
+
+    Args:
+        path: destination (``.gsd``); its folder must exist.
+        packing: the packing to store.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    frame = _frame(packing)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        with gsd.hoomd.open(tmp, mode="w") as traj:
+            traj.append(frame)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def read_packing(path: str | os.PathLike) -> Packing:
+    """Read a packing written by :func:`write_packing` (the last frame if there are several).
+
+    Raises:
+        InputError: the file is missing, is not a readable GSD file, or lacks the granpack data
+            (one-line message naming the file).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: file not found")
+    try:
+        with gsd.hoomd.open(path, mode="r") as traj:
+            if len(traj) == 0:
+                raise InputError(f"{path}: GSD file holds no frame")
+            frame = traj[len(traj) - 1]
+    except InputError:
+        raise
+    except Exception as exc:  # gsd raises RuntimeError/OSError/ValueError on damaged files
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{path}: not a readable GSD file ({msg})") from None
+    try:
+        return _decode(frame)
+    except KeyError as exc:
+        raise InputError(f"{path}: not a granpack packing (missing {exc.args[0]!r})") from None
+    except (ValueError, TypeError, UnicodeDecodeError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise InputError(f"{path}: inconsistent granpack packing ({msg})") from None
+
+
+def _decode(frame: gsd.hoomd.Frame) -> Packing:
+    log = frame.log
+    if "granpack/format" not in log:
+        raise KeyError("log/granpack/format")
+    fmt = int(np.asarray(log["granpack/format"])[0])
+    if fmt != FORMAT_VERSION:
+        raise ValueError(f"unsupported granpack GSD format {fmt} (this version reads {FORMAT_VERSION})")
+    n = int(frame.particles.N)
+    shapes = ShapeTable.from_shapes([shape_from_spec(s) for s in _untext(log["granpack/shapes"])])
+    lx, ly = (float(v) for v in log["granpack/lateral_size"])
+    state = ParticleState(
+        box=Box(lx, ly),
+        shapes=shapes,
+        kind=np.asarray(frame.particles.typeid, dtype=np.int64).reshape(n),
+        population=np.asarray(log["particles/population"], dtype=np.int64).reshape(n),
+        position=np.asarray(log["granpack/position"], dtype=np.float64).reshape(n, 3),
+        quaternion=np.asarray(log["granpack/orientation"], dtype=np.float64).reshape(n, 4),
+        velocity=np.asarray(log["granpack/velocity"], dtype=np.float64).reshape(n, 3),
+        omega=np.asarray(log["particles/omega"], dtype=np.float64).reshape(n, 3),
+        time=float(np.asarray(log["granpack/time"])[0]),
+    )
+    if n and (state.kind.min() < 0 or state.kind.max() >= shapes.n_kinds):
+        raise ValueError("particle typeid outside the stored shapes")
+    arrays = {name: np.asarray(log[f"contacts/{name}"]) for name in _CONTACT_FIELDS}
+    m, p = len(arrays["body_i"]), len(arrays["gap"])
+    contacts = ContactSet(
+        body_i=arrays["body_i"].astype(np.int64).reshape(m),
+        body_j=arrays["body_j"].astype(np.int64).reshape(m),
+        shift=arrays["shift"].astype(np.float64).reshape(m, 3),
+        normal=arrays["normal"].astype(np.float64).reshape(m, 3),
+        ctype=arrays["ctype"].astype(np.int64).reshape(m),
+        point_start=arrays["point_start"].astype(np.int64).reshape(m + 1),
+        point=arrays["point"].astype(np.float64).reshape(p, 3),
+        gap=arrays["gap"].astype(np.float64).reshape(p),
+        impulse=arrays["impulse"].astype(np.float64).reshape(p, 3),
+    )
+    if contacts.point_start[-1] != p:
+        raise ValueError("contact point offsets do not match the number of points")
+    return Packing(
+        state=state,
+        contacts=contacts,
+        time_step=float(np.asarray(log["granpack/time_step"])[0]),
+        population_names=[str(s) for s in _untext(log["granpack/population_names"])],
+        metadata=dict(_untext(log["granpack/metadata"])),
+    )

@@ -1,0 +1,227 @@
+"""Synthetic packings with known answers, shared by the analysis and GSD tests."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from granpack.box import Box
+from granpack.contact.contacts import ContactSet
+from granpack.packing import Packing
+from granpack.rotations import random_quaternions
+from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
+from granpack.state import ParticleState
+
+H = 5e-3  # time step used by the builders
+
+
+def contact_set(manifolds: list[dict]) -> ContactSet:
+    """ContactSet from dicts with keys i, j, shift, normal, ctype, points (k, 3), gaps (k,), forces (k, 3)."""
+    if not manifolds:
+        return ContactSet.empty()
+    start = np.concatenate([[0], np.cumsum([len(m["points"]) for m in manifolds])])
+    return ContactSet(
+        body_i=np.array([m["i"] for m in manifolds], dtype=np.int64),
+        body_j=np.array([m["j"] for m in manifolds], dtype=np.int64),
+        shift=np.array([m.get("shift", (0.0, 0.0, 0.0)) for m in manifolds], dtype=np.float64),
+        normal=np.array([m["normal"] for m in manifolds], dtype=np.float64),
+        ctype=np.array([m.get("ctype", 1) for m in manifolds], dtype=np.int64),
+        point_start=start.astype(np.int64),
+        point=np.concatenate([np.asarray(m["points"], dtype=np.float64).reshape(-1, 3) for m in manifolds]),
+        gap=np.concatenate([np.asarray(m.get("gaps", np.zeros(len(m["points"]))), dtype=np.float64) for m in manifolds]),
+        impulse=H * np.concatenate([np.asarray(m["forces"], dtype=np.float64).reshape(-1, 3) for m in manifolds]),
+    )
+
+
+def identity_quaternions(n: int) -> np.ndarray:
+    q = np.zeros((n, 4))
+    q[:, 0] = 1.0
+    return q
+
+
+def fcc_spheres(cells_xy: int = 4, cells_z: int = 6, diameter: float = 1.0, forces: bool = True):
+    """FCC crystal of touching spheres, (001) planes horizontal, bottom layer on the wall.
+
+    Returns ``(packing, a)`` with ``a = sqrt(2) d`` the cubic lattice constant. Every touching pair
+    (12 per sphere, with images) is a manifold carrying a unit normal force when ``forces``; the
+    bottom layer touches the wall.
+    """
+    a = math.sqrt(2.0) * diameter
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    cells = np.array(list(itertools.product(range(cells_xy), range(cells_xy), range(cells_z))), dtype=float)
+    pos = ((cells[:, None, :] + basis[None]).reshape(-1, 3) + 0.25) * a
+    pos[:, 2] += 0.5 * diameter - 0.25 * a
+    box = Box.square(cells_xy * a)
+    n = len(pos)
+    state = ParticleState(
+        box=box,
+        shapes=ShapeTable.from_shapes([Sphere(diameter)]),
+        kind=np.zeros(n, np.int64),
+        population=np.zeros(n, np.int64),
+        position=pos,
+        quaternion=identity_quaternions(n),
+    )
+    manifolds = []
+    for i in range(n):
+        for j in range(i + 1, n):
+            delta = box.minimum_image(pos[i] - pos[j])
+            if abs(np.linalg.norm(delta) - diameter) < 1e-9:
+                shift = pos[i] - delta - pos[j]
+                normal = delta / diameter
+                manifolds.append(
+                    dict(i=i, j=j, shift=shift, normal=normal, points=[pos[i] - 0.5 * diameter * normal],
+                         forces=[normal * (1.0 if forces else 0.0)])
+                )
+        if pos[i, 2] < diameter:
+            manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), points=[pos[i] - (0, 0, 0.5 * diameter)], forces=[(0, 0, 1.0)]))
+    return Packing(state, contact_set(manifolds), H, ["spheres"], {"seed": 7}), a
+
+
+def cubic_cubes(cells_xy: int = 3, layers: int = 8):
+    """Simple cubic stack of axis-aligned cubes (circumscribed diameter 1) face to face.
+
+    Returns ``(packing, edge)``. Face contacts carry four corner points with the weight above
+    (vertical) or a unit force (lateral); the bottom layer rests on the wall.
+    """
+    cube = platonic("cube", 1.0)
+    e = 1.0 / math.sqrt(3.0)
+    cells = np.array(list(itertools.product(range(cells_xy), range(cells_xy), range(layers))), dtype=float)
+    pos = (cells + 0.5) * e
+    n = len(pos)
+    box = Box.square(cells_xy * e)
+    state = ParticleState(
+        box=box,
+        shapes=ShapeTable.from_shapes([cube]),
+        kind=np.zeros(n, np.int64),
+        population=np.zeros(n, np.int64),
+        position=pos,
+        quaternion=identity_quaternions(n),
+    )
+    index = {tuple(c.astype(int)): k for k, c in enumerate(cells)}
+    corners = np.array([[s, t] for s in (-0.5, 0.5) for t in (-0.5, 0.5)]) * e
+    weight = cube.volume
+    manifolds = []
+    for (ix, iy, iz), lower in index.items():
+        for axis in range(3):
+            other = [ix, iy, iz]
+            other[axis] += 1
+            shift = np.zeros(3)
+            if axis == 2 and other[2] == layers:
+                continue
+            if axis < 2 and other[axis] == cells_xy:
+                other[axis] = 0
+                shift[axis] = -cells_xy * e
+            upper = index[tuple(other)]
+            normal = np.eye(3)[axis]  # from j = lower to i = upper
+            rest = [k for k in range(3) if k != axis]
+            pts = np.repeat((pos[upper] - 0.5 * e * normal)[None], 4, axis=0)
+            pts[:, rest[0]] += corners[:, 0]
+            pts[:, rest[1]] += corners[:, 1]
+            load = weight * (layers - iz - 1) if axis == 2 else 1.0
+            manifolds.append(dict(i=upper, j=lower, shift=shift, normal=normal, ctype=3, points=pts,
+                                  forces=np.repeat((normal * load / 4)[None], 4, axis=0)))
+        i = lower
+        if iz == 0:
+            pts = np.repeat((pos[i] - (0, 0, 0.5 * e))[None], 4, axis=0)
+            pts[:, 0] += corners[:, 0]
+            pts[:, 1] += corners[:, 1]
+            manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), ctype=3, points=pts,
+                                  forces=np.repeat(np.array([[0, 0, weight * layers / 4]]), 4, axis=0)))
+    return Packing(state, contact_set(manifolds), H, ["cubes"], {"seed": 3}), e
+
+
+def sphere_column(side: int = 3, layers: int = 6, diameter: float = 1.0):
+    """Simple cubic stack of spheres; vertical contacts carry the weight above, lateral ones zero force.
+
+    The box side is ``side * diameter`` so lateral neighbours touch (also across the boundary).
+    """
+    cells = np.array(list(itertools.product(range(side), range(side), range(layers))), dtype=float)
+    pos = (cells + 0.5) * diameter
+    n = len(pos)
+    sphere = Sphere(diameter)
+    state = ParticleState(
+        box=Box.square(side * diameter),
+        shapes=ShapeTable.from_shapes([sphere]),
+        kind=np.zeros(n, np.int64),
+        population=np.zeros(n, np.int64),
+        position=pos,
+        quaternion=identity_quaternions(n),
+    )
+    index = {tuple(c.astype(int)): k for k, c in enumerate(cells)}
+    m = sphere.volume
+    manifolds = []
+    for (ix, iy, iz), i in index.items():
+        if iz == 0:
+            manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), points=[pos[i] - (0, 0, diameter / 2)], forces=[(0, 0, m * layers)]))
+        else:
+            j = index[(ix, iy, iz - 1)]
+            manifolds.append(dict(i=i, j=j, normal=(0, 0, 1), points=[pos[i] - (0, 0, diameter / 2)], forces=[(0, 0, m * (layers - iz))]))
+        for axis in range(2):
+            other = [ix, iy, iz]
+            other[axis] = (other[axis] + 1) % side
+            shift = np.zeros(3)
+            if other[axis] == 0:
+                shift[axis] = side * diameter
+            j = index[tuple(other)]
+            normal = -np.eye(3)[axis]
+            manifolds.append(dict(i=i, j=j, shift=shift, normal=normal, points=[pos[i] + 0.5 * diameter * np.eye(3)[axis]],
+                                  forces=[(0.0, 0.0, 0.0)]))
+    return Packing(state, contact_set(manifolds), H, ["spheres"], {"seed": 1})
+
+
+def single(shape, position=(0.0, 0.0, 0.0), quaternion=(1.0, 0.0, 0.0, 0.0), lateral=4.0) -> Packing:
+    """One grain, no contacts."""
+    state = ParticleState(
+        box=Box.square(lateral),
+        shapes=ShapeTable.from_shapes([shape]),
+        kind=np.zeros(1, np.int64),
+        population=np.zeros(1, np.int64),
+        position=np.array([position], dtype=float),
+        quaternion=np.array([quaternion], dtype=float),
+    )
+    return Packing(state, ContactSet.empty(), H, ["grain"], {})
+
+
+def random_pinacoids(n: int, rng, lateral: float = 8.0, height: float = 12.0, small_fraction: float = 0.3,
+                     contacts_per_particle: float = 3.0) -> Packing:
+    """Random positions in a slab, random orientations, two populations, random contacts with forces."""
+    big = Pinacoid.family("isometric", 1.0)
+    small = Pinacoid.family("isometric", 1.0 / 3.0)
+    kind = (rng.random(n) < small_fraction).astype(np.int64)
+    pos = np.column_stack([rng.random(n) * lateral, rng.random(n) * lateral, 0.5 + rng.random(n) * (height - 1.0)])
+    state = ParticleState(
+        box=Box.square(lateral),
+        shapes=ShapeTable.from_shapes([big, small]),
+        kind=kind,
+        population=kind.copy(),
+        position=pos,
+        quaternion=random_quaternions(n, rng),
+    )
+    m = int(contacts_per_particle * n / 2)
+    i = rng.integers(0, n, m)
+    j = rng.integers(0, n, m)
+    keep = i != j
+    i, j = i[keep], j[keep]
+    m = len(i)
+    npts = rng.integers(1, 5, m)
+    start = np.concatenate([[0], np.cumsum(npts)]).astype(np.int64)
+    p = int(start[-1])
+    delta = state.box.minimum_image(pos[i] - pos[j])
+    normal = delta / np.linalg.norm(delta, axis=1)[:, None]
+    shift = pos[i] - delta - pos[j]
+    seg = np.repeat(np.arange(m), npts)
+    mid = pos[j][seg] + shift[seg] + 0.5 * delta[seg]
+    contacts = ContactSet(
+        body_i=i.astype(np.int64),
+        body_j=j.astype(np.int64),
+        shift=shift,
+        normal=normal,
+        ctype=np.minimum(npts, 3).astype(np.int64),
+        point_start=start,
+        point=mid + 0.01 * rng.standard_normal((p, 3)),
+        gap=-1e-4 * rng.random(p),
+        impulse=H * normal[seg] * rng.random(p)[:, None],
+    )
+    return Packing(state, contacts, H, ["large", "small"], {"seed": 11})
