@@ -308,9 +308,7 @@ def _alert_distance(solver: SolverConfig, largest_size: float) -> float:
 
 
 def _toml_value(value: Any) -> str:
-    """One TOML value: bool, int, finite float, str, or a (nested) array of them."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
+    """One TOML value: int, finite float, str, or a (nested) array of them (the schema has no bool)."""
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):
