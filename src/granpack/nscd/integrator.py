@@ -1,0 +1,261 @@
+"""One Moreau–Jean step: predict, detect, assemble, solve (NLGS), correct positions, update.
+
+The scheme (PHYSICS.md §2.2, formulas in :mod:`granpack.nscd.rigid`): free velocities with
+gravity ``(0, 0, -1)`` and the explicit gyroscopic term; contacts detected on the predicted
+configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried by the contacts' shifts);
+the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS (:mod:`granpack.nscd.nlgs`)
+from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
+``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into the cell.
+
+Position correction (keeps interpenetration small without adding kinetic energy). The
+velocity-level Signorini law of the scheme (IQS, ``u_n + max(0, g)/h >= 0``) only stops
+overlaps from growing; solver residuals and the rotation non-linearity let them drift. After the
+velocity solve, the end-of-step gap of every point is predicted to first order,
+
+.. math:: g^{end}_α = g_α + θ h\\, u_{n,α}^{n+1},
+
+and when some overlap exceeds the slop ``s`` (``min g^end < -s``), a post-step projection
+(post-stabilisation, Cline & Pai 2003) solves, with the same operator and the same NLGS, the
+linear complementarity problem for pseudo-impulses ``p`` whose 'velocities' are displacements:
+
+.. math:: 0 \\le p_α \\perp g^{end}_α + (H^T M^{-1} H p)_α + s/2 \\ge 0, \\qquad
+          (δx, δφ) = M^{-1} H p
+
+i.e. the smallest mass-weighted rigid displacements (minimum of ``½ δXᵀ M δX``) that bring every
+linearised gap to ``>= -s/2``. Only positions move: velocities, hence kinetic energy, are
+untouched, and no body is pushed further than the overlap it had (no ejection); the only energy
+change is the potential energy ``Σ m g δz`` of lifting overlapping grains back to contact, which
+:class:`StepInfo` reports as ``correction_energy`` so that energy budgets can account for it.
+Overlaps then stay below about ``s`` (plus the detection and linearisation error).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from granpack.contact.contacts import ContactSet
+from granpack.nscd.nlgs import NLGSOptions, solve
+from granpack.nscd.problem import assemble
+from granpack.nscd.rigid import predict_kernel, update_kernel
+from granpack.nscd.warmstart import warm_impulses
+from granpack.state import ParticleState
+
+__all__ = ["StepParameters", "StepInfo", "Prediction", "predict", "advance", "step"]
+
+
+@dataclass(frozen=True)
+class StepParameters:
+    """Settings of a Moreau–Jean step (units: d, sqrt(d/g)).
+
+    Attributes:
+        time_step: h, sqrt(d/g).
+        theta: θ of the scheme, in [0.5, 1].
+        friction: Coulomb μ >= 0 (0: frictionless kernel).
+        restitution: normal restitution e_N in [0, 1].
+        tolerance: NLGS 'Quad' norm tolerance.
+        max_iterations: NLGS sweep budget per solve.
+        check_every: sweeps per convergence check.
+        alert: detection distance, d.
+        overlap_slop: overlap above which positions are corrected (corrected to half of it), d;
+            ``0`` disables the correction.
+        warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
+    """
+
+    time_step: float = 5e-3
+    theta: float = 0.5
+    friction: float = 0.0
+    restitution: float = 0.0
+    tolerance: float = 1e-4
+    max_iterations: int = 2000
+    check_every: int = 10
+    alert: float = 0.05
+    overlap_slop: float = 5e-5
+    warm_tolerance: float = 0.05
+
+    def __post_init__(self):
+        if not self.time_step > 0:
+            raise ValueError(f"time_step must be > 0, got {self.time_step}")
+        if not 0.5 <= self.theta <= 1.0:
+            raise ValueError(f"theta must be in [0.5, 1], got {self.theta}")
+        if not self.friction >= 0:
+            raise ValueError(f"friction must be >= 0, got {self.friction}")
+        if not 0.0 <= self.restitution <= 1.0:
+            raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
+        if not self.alert >= 0 or not self.overlap_slop >= 0 or not self.warm_tolerance >= 0:
+            raise ValueError("alert, overlap_slop and warm_tolerance must be >= 0")
+
+    @property
+    def solver_options(self) -> NLGSOptions:
+        return NLGSOptions(tolerance=self.tolerance, max_iterations=self.max_iterations, check_every=self.check_every)
+
+
+@dataclass(frozen=True)
+class StepInfo:
+    """Diagnostics of one step.
+
+    Attributes:
+        iterations: NLGS sweeps of the velocity solve.
+        error: its final 'Quad' error (see :mod:`granpack.nscd.nlgs`).
+        converged: whether it met the tolerance.
+        n_contacts: manifolds.
+        n_points: contact points.
+        n_warm: points warm-started from the previous step.
+        max_overlap: largest overlap ``max(0, -g)`` at the predicted configuration, d.
+        correction_iterations: NLGS sweeps of the position correction (0 when not needed).
+        correction_energy: potential energy ``Σ m g δz`` added by the position correction, m g d.
+        solver_seconds: assembly, warm start, solves and update, s.
+        detection_seconds: contact detection, s.
+    """
+
+    iterations: int
+    error: float
+    converged: bool
+    n_contacts: int
+    n_points: int
+    n_warm: int
+    max_overlap: float
+    correction_iterations: int
+    correction_energy: float
+    solver_seconds: float
+    detection_seconds: float
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """The predicted configuration of a step and what the solve needs from the bodies.
+
+    Attributes:
+        state: the bodies at ``TT`` (positions wrapped), what detection sees.
+        x_tt: ``(N, 3)`` predicted centres (wrapped, same as ``state.position``).
+        rot_tt: ``(N, 3, 3)`` rotation matrices at TT.
+        inv_mass: ``(N + 1,)`` inverse masses, wall last (0).
+        inv_inertia_world: ``(N + 1, 6)`` world inverse inertias at TT.
+        start_velocity, free_velocity: ``(N + 1, 6)`` world generalised velocities.
+    """
+
+    state: ParticleState
+    x_tt: np.ndarray
+    rot_tt: np.ndarray
+    inv_mass: np.ndarray
+    inv_inertia_world: np.ndarray
+    start_velocity: np.ndarray
+    free_velocity: np.ndarray
+
+
+def predict(state: ParticleState, params: StepParameters) -> Prediction:
+    """Predicted configuration ``x^TT``, ``q^TT`` and free velocities of a step (state unchanged)."""
+    n = state.n
+    x_tt = np.empty((n, 3))
+    q_tt = np.empty((n, 4))
+    rot_tt = np.empty((n, 3, 3))
+    inv_iw = np.empty((n + 1, 6))
+    v_start = np.empty((n + 1, 6))
+    v_free = np.empty((n + 1, 6))
+    predict_kernel(
+        state.position, state.quaternion, state.velocity, state.omega, np.ascontiguousarray(state.inertia),
+        float(params.time_step), float(params.theta), x_tt, q_tt, rot_tt, inv_iw, v_start, v_free,
+    )
+    x_tt = state.box.wrap(x_tt)
+    inv_mass = np.zeros(n + 1)
+    inv_mass[:n] = 1.0 / state.mass
+    tt = ParticleState(
+        box=state.box, shapes=state.shapes, kind=state.kind, population=state.population,
+        position=x_tt, quaternion=q_tt, velocity=state.velocity, omega=state.omega, time=state.time,
+    )
+    return Prediction(tt, x_tt, rot_tt, inv_mass, inv_iw, v_start, v_free)
+
+
+def advance(
+    state: ParticleState,
+    prediction: Prediction,
+    contacts: ContactSet,
+    params: StepParameters,
+    warm: ContactSet | None = None,
+    detection_seconds: float = 0.0,
+) -> tuple[ContactSet, StepInfo]:
+    """Finish a step from the contacts detected at the predicted configuration (state advanced in place).
+
+    Args:
+        state: the state at t_n (becomes the state at t_{n+1}).
+        prediction: ``predict(state, params)``.
+        contacts: the contacts at the predicted configuration.
+        params: step settings.
+        warm: the previous step's returned contacts (impulses), or ``None``.
+        detection_seconds: reported in the :class:`StepInfo`.
+
+    Returns:
+        ``(contacts, info)``: ``contacts`` with ``impulse`` set (world impulse on body i over the
+        step, per point; force = impulse / h).
+    """
+    t0 = time.perf_counter()
+    h, theta = float(params.time_step), float(params.theta)
+    pr = prediction
+    problem = assemble(
+        contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
+        restitution=params.restitution, friction=params.friction,
+    )
+    tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
+    r0, n_warm = warm_impulses(
+        warm, contacts, problem.tangent, pr.x_tt, pr.rot_tt, state.velocity, state.omega, h,
+        (state.box.lx, state.box.ly), tol_warm, params.friction,
+    )
+    problem = replace(problem, initial_impulse=r0)
+    impulse, info = solve(problem, params.solver_options)
+    v_end = problem.velocity(impulse)
+    displacement = np.zeros_like(v_end)
+    correction_iterations = 0
+    correction_energy = 0.0
+    max_overlap = float(max(0.0, -problem.gap.min())) if problem.n_points else 0.0
+    if problem.n_points and params.overlap_slop > 0:
+        gap_end = problem.gap + theta * h * problem.local_velocity(v_end)[:, 0]
+        if gap_end.min() < -params.overlap_slop:
+            correction = problem.projection(gap_end + 0.5 * params.overlap_slop)
+            pseudo, cinfo = solve(correction, params.solver_options)
+            displacement = correction.velocity(pseudo)
+            correction_iterations = cinfo.iterations
+            correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
+    update_kernel(
+        pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
+        state.position, state.quaternion, state.velocity, state.omega,
+    )
+    state.time += h
+    contacts.impulse = problem.world_impulse(impulse)
+    solver_seconds = time.perf_counter() - t0
+    return contacts, StepInfo(
+        iterations=info.iterations,
+        error=info.error,
+        converged=info.converged,
+        n_contacts=contacts.n_manifolds,
+        n_points=contacts.n_points,
+        n_warm=n_warm,
+        max_overlap=max_overlap,
+        correction_iterations=correction_iterations,
+        correction_energy=correction_energy,
+        solver_seconds=solver_seconds,
+        detection_seconds=detection_seconds,
+    )
+
+
+def step(state: ParticleState, params: StepParameters, warm: ContactSet | None = None) -> tuple[ContactSet, StepInfo]:
+    """Advance ``state`` in place by one Moreau–Jean step.
+
+    Args:
+        state: bodies at t_n (positions wrapped; omega in the body frame).
+        params: step settings.
+        warm: the contacts returned by the previous step (warm start), or ``None``.
+
+    Returns:
+        ``(contacts, info)``: the contacts of the step (detected at the predicted configuration)
+        with their per-point world impulses on body i (``impulse``, force = impulse / h), and the
+        :class:`StepInfo`.
+    """
+    from granpack.contact import detect
+
+    prediction = predict(state, params)
+    t0 = time.perf_counter()
+    contacts = detect(prediction.state, params.alert, previous=warm)
+    detection_seconds = time.perf_counter() - t0
+    return advance(state, prediction, contacts, params, warm, detection_seconds)

@@ -1,0 +1,336 @@
+"""Non-linear Gauss–Seidel (NLGS) solver of a :class:`~granpack.nscd.problem.ContactProblem`.
+
+Matrix-free (PHYSICS.md §2.6): body velocities ``V`` (world rows ``(v, ω^w)``) are kept current,
+starting from ``V_free + M^{-1} H r_0`` (warm start ``r_0``); each point reads its local velocity
+from them, solves its local problem exactly for the normal part and updates both bodies:
+
+.. math::
+
+    u_n = n \\cdot (v_i - v_j) + (a_i \\times n) \\cdot ω_i - (a_j \\times n) \\cdot ω_j, \\qquad
+    r_n \\leftarrow \\max\\big(0,\\, r_n - (u_n + c) / W_{nn}\\big)
+
+    v_i \\mathrel{+}= Δr_n\\, n / m_i, \\quad ω_i \\mathrel{+}= Δr_n\\, J_{w,i}^{-1}(a_i \\times n), \\quad
+    (\\text{opposite on } j)
+
+With Coulomb friction (a separate kernel, so μ = 0 costs nothing) the tangential impulse is
+projected on the disc ``|r_T| <= μ r_n`` after the normal update (maximal dissipation; its fixed
+points are exactly the Signorini–Coulomb solutions):
+
+.. math:: r_T \\leftarrow \\mathrm{proj}_{D(μ r_n)}\\big(r_T - ρ_T u_T\\big), \\qquad ρ_T = 1/\\max(W_{tt}, W_{ss})
+
+Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic).
+Convergence: LMGC90's 'Quad' norm (PHYSICS.md §2.7) evaluated on the sweep that ends each block
+of ``check_every`` sweeps, from the last two iterates ``r^k``, ``r^{k-1}`` of each active point
+(``r^k ≠ 0`` or ``r^{k-1} ≠ 0``), ``ΔU = W_αα (r^k - r^{k-1})``, ``r̄ = (r^k + r^{k-1})/2``:
+
+.. math::
+
+    \\mathrm{QuadDV} = \\frac{\\sqrt{Σ|ΔU|^2 / N}}{\\sqrt{Σ\\tfrac12(|W r^k|^2 + |W r^{k-1}|^2)/N}\\; tol}, \\quad
+    \\mathrm{QuadDVR} = \\frac{\\sqrt{Σ|ΔU|^2 |r̄|^2 / N}}{Σ\\tfrac12(W r^k \\cdot r^k + W r^{k-1} \\cdot r^{k-1}) / N\\; tol}, \\quad
+    \\mathrm{MeanDVoR} = \\frac{Σ r̄ \\cdot ΔU}{Σ\\tfrac12(W r^k \\cdot r^k + W r^{k-1} \\cdot r^{k-1})\\; tol}
+
+converged when all three are below 1 in magnitude. The reported ``error`` is
+``tol * max(|QuadDV|, |QuadDVR|, |MeanDVoR|)`` (converged ⇔ error < tol).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from granpack._numba import jit
+from granpack.nscd.problem import (
+    AIN,
+    AIS,
+    AIT,
+    AJN,
+    AJS,
+    AJT,
+    IMI,
+    IMJ,
+    INVW,
+    KIN,
+    KIS,
+    KIT,
+    KJN,
+    KJS,
+    KJT,
+    MU,
+    N0,
+    RHOT,
+    S0,
+    T0,
+    WBLK,
+    WNN,
+    ContactProblem,
+)
+
+__all__ = ["NLGSOptions", "SolverInfo", "solve"]
+
+
+@dataclass(frozen=True)
+class NLGSOptions:
+    """NLGS settings.
+
+    Attributes:
+        tolerance: 'Quad' norm tolerance (LMGC90 default 1e-4).
+        max_iterations: largest number of sweeps.
+        check_every: sweeps per convergence check (LMGC90 ``gs_it1``).
+    """
+
+    tolerance: float = 1e-4
+    max_iterations: int = 2000
+    check_every: int = 10
+
+    def __post_init__(self):
+        if not self.tolerance > 0:
+            raise ValueError(f"tolerance must be > 0, got {self.tolerance}")
+        if self.max_iterations < 1 or self.check_every < 1:
+            raise ValueError("max_iterations and check_every must be >= 1")
+
+
+@dataclass(frozen=True)
+class SolverInfo:
+    """What a solve reports.
+
+    Attributes:
+        iterations: sweeps done.
+        error: ``tol * max(|QuadDV|, |QuadDVR|, |MeanDVoR|)`` at the last check (0 without active point).
+        converged: whether the last check passed.
+    """
+
+    iterations: int
+    error: float
+    converged: bool
+
+
+@jit
+def _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor):
+    """Numba: ``max(|QuadDV|, |QuadDVR|, |MeanDVoR|) * tol`` (i.e. without the 1/tol) from the accumulated sums."""
+    if n_act == 0 or wrwr <= 0.0 or wrr <= 0.0:
+        return 0.0
+    quad_wr = np.sqrt(wrwr / n_act)
+    quad_dv = np.sqrt(dvdv / n_act) / quad_wr
+    quad_dvr = np.sqrt(dvdvrr / n_act) / (wrr / n_act)
+    mean_dvor = abs(dvor) / wrr
+    return max(quad_dv, quad_dvr, mean_dvor)
+
+
+@jit
+def _normal_point(k, body, data, offset, r, v):
+    """Numba: exact local frictionless solve of point k; updates ``r[k]`` and both bodies; returns the old impulse."""
+    i = body[k, 0]
+    j = body[k, 1]
+    u = (
+        data[k, N0] * (v[i, 0] - v[j, 0])
+        + data[k, N0 + 1] * (v[i, 1] - v[j, 1])
+        + data[k, N0 + 2] * (v[i, 2] - v[j, 2])
+        + data[k, AIN] * v[i, 3]
+        + data[k, AIN + 1] * v[i, 4]
+        + data[k, AIN + 2] * v[i, 5]
+        - data[k, AJN] * v[j, 3]
+        - data[k, AJN + 1] * v[j, 4]
+        - data[k, AJN + 2] * v[j, 5]
+    )
+    r_old = r[k]
+    r_new = r_old - (u + offset[k]) * data[k, INVW]
+    if r_new < 0.0:
+        r_new = 0.0
+    dr = r_new - r_old
+    r[k] = r_new
+    a = dr * data[k, IMI]
+    b = dr * data[k, IMJ]
+    v[i, 0] += a * data[k, N0]
+    v[i, 1] += a * data[k, N0 + 1]
+    v[i, 2] += a * data[k, N0 + 2]
+    v[i, 3] += dr * data[k, KIN]
+    v[i, 4] += dr * data[k, KIN + 1]
+    v[i, 5] += dr * data[k, KIN + 2]
+    v[j, 0] -= b * data[k, N0]
+    v[j, 1] -= b * data[k, N0 + 1]
+    v[j, 2] -= b * data[k, N0 + 2]
+    v[j, 3] -= dr * data[k, KJN]
+    v[j, 4] -= dr * data[k, KJN + 1]
+    v[j, 5] -= dr * data[k, KJN + 2]
+    return r_old
+
+
+@jit
+def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every):
+    """Numba: NLGS sweeps on normal impulses ``r`` (P,) and velocities ``v`` (N + 1, 6), in place.
+
+    Returns:
+        ``(sweeps, error, converged)``.
+    """
+    p = r.shape[0]
+    if p == 0:
+        return 0, 0.0, True
+    it = 0
+    error = np.inf
+    while it < max_iterations:
+        block = min(check_every, max_iterations - it)
+        for _ in range(block - 1):
+            if it % 2 == 0:
+                for k in range(p):
+                    _normal_point(k, body, data, offset, r, v)
+            else:
+                for k in range(p - 1, -1, -1):
+                    _normal_point(k, body, data, offset, r, v)
+            it += 1
+        n_act = 0
+        dvdv = wrwr = dvdvrr = wrr = dvor = 0.0
+        forward = it % 2 == 0
+        for step in range(p):
+            k = step if forward else p - 1 - step
+            r_old = _normal_point(k, body, data, offset, r, v)
+            r_new = r[k]
+            if r_old != 0.0 or r_new != 0.0:
+                w = data[k, WNN]
+                du = w * (r_new - r_old)
+                rbar = 0.5 * (r_new + r_old)
+                n_act += 1
+                dvdv += du * du
+                wrwr += 0.5 * w * w * (r_new * r_new + r_old * r_old)
+                dvdvrr += du * du * rbar * rbar
+                wrr += 0.5 * w * (r_new * r_new + r_old * r_old)
+                dvor += rbar * du
+        it += 1
+        error = tol * _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
+        if error < tol:
+            return it, error, True
+    return it, error, False
+
+
+@jit
+def _friction_point(k, body, data, fdata, offset, r, v, old):
+    """Numba: local Signorini–Coulomb update of point k (normal exact, tangential projected).
+
+    Updates ``r[k]`` (local ``(r_n, r_t, r_s)``) and both bodies; writes the previous impulse to ``old``.
+    """
+    i = body[k, 0]
+    j = body[k, 1]
+    dv0 = v[i, 0] - v[j, 0]
+    dv1 = v[i, 1] - v[j, 1]
+    dv2 = v[i, 2] - v[j, 2]
+    un = data[k, N0] * dv0 + data[k, N0 + 1] * dv1 + data[k, N0 + 2] * dv2
+    ut = fdata[k, T0] * dv0 + fdata[k, T0 + 1] * dv1 + fdata[k, T0 + 2] * dv2
+    us = fdata[k, S0] * dv0 + fdata[k, S0 + 1] * dv1 + fdata[k, S0 + 2] * dv2
+    for c in range(3):
+        wi = v[i, 3 + c]
+        wj = v[j, 3 + c]
+        un += data[k, AIN + c] * wi - data[k, AJN + c] * wj
+        ut += fdata[k, AIT + c] * wi - fdata[k, AJT + c] * wj
+        us += fdata[k, AIS + c] * wi - fdata[k, AJS + c] * wj
+    rn0, rt0, rs0 = r[k, 0], r[k, 1], r[k, 2]
+    old[0], old[1], old[2] = rn0, rt0, rs0
+    rn = rn0 - (un + offset[k]) * data[k, INVW]
+    if rn < 0.0:
+        rn = 0.0
+    rho = fdata[k, RHOT]
+    rt = rt0 - rho * ut
+    rs = rs0 - rho * us
+    limit = fdata[k, MU] * rn
+    norm2 = rt * rt + rs * rs
+    if norm2 > limit * limit:
+        scale = limit / np.sqrt(norm2)
+        rt *= scale
+        rs *= scale
+    r[k, 0], r[k, 1], r[k, 2] = rn, rt, rs
+    drn, drt, drs = rn - rn0, rt - rt0, rs - rs0
+    a = data[k, IMI]
+    b = data[k, IMJ]
+    for c in range(3):
+        pw = drn * data[k, N0 + c] + drt * fdata[k, T0 + c] + drs * fdata[k, S0 + c]
+        v[i, c] += a * pw
+        v[j, c] -= b * pw
+        v[i, 3 + c] += drn * data[k, KIN + c] + drt * fdata[k, KIT + c] + drs * fdata[k, KIS + c]
+        v[j, 3 + c] -= drn * data[k, KJN + c] + drt * fdata[k, KJT + c] + drs * fdata[k, KJS + c]
+
+
+@jit
+def _block_product(fdata, k, x0, x1, x2):
+    """Numba: ``W_αα x`` with the symmetric diagonal block of point k (entries nn, tt, ss, nt, ns, ts)."""
+    w = fdata[k]
+    y0 = w[WBLK] * x0 + w[WBLK + 3] * x1 + w[WBLK + 4] * x2
+    y1 = w[WBLK + 3] * x0 + w[WBLK + 1] * x1 + w[WBLK + 5] * x2
+    y2 = w[WBLK + 4] * x0 + w[WBLK + 5] * x1 + w[WBLK + 2] * x2
+    return y0, y1, y2
+
+
+@jit
+def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_every):
+    """Numba: NLGS sweeps with Coulomb friction on local impulses ``r`` (P, 3), in place.
+
+    Returns:
+        ``(sweeps, error, converged)``.
+    """
+    p = r.shape[0]
+    if p == 0:
+        return 0, 0.0, True
+    old = np.empty(3)
+    it = 0
+    error = np.inf
+    while it < max_iterations:
+        block = min(check_every, max_iterations - it)
+        for _ in range(block - 1):
+            if it % 2 == 0:
+                for k in range(p):
+                    _friction_point(k, body, data, fdata, offset, r, v, old)
+            else:
+                for k in range(p - 1, -1, -1):
+                    _friction_point(k, body, data, fdata, offset, r, v, old)
+            it += 1
+        n_act = 0
+        dvdv = wrwr = dvdvrr = wrr = dvor = 0.0
+        forward = it % 2 == 0
+        for step in range(p):
+            k = step if forward else p - 1 - step
+            _friction_point(k, body, data, fdata, offset, r, v, old)
+            n0, n1, n2 = r[k, 0], r[k, 1], r[k, 2]
+            o0, o1, o2 = old[0], old[1], old[2]
+            if n0 != 0.0 or o0 != 0.0:
+                d0, d1, d2 = _block_product(fdata, k, n0 - o0, n1 - o1, n2 - o2)
+                wn0, wn1, wn2 = _block_product(fdata, k, n0, n1, n2)
+                wo0, wo1, wo2 = _block_product(fdata, k, o0, o1, o2)
+                b0, b1, b2 = 0.5 * (n0 + o0), 0.5 * (n1 + o1), 0.5 * (n2 + o2)
+                du2 = d0 * d0 + d1 * d1 + d2 * d2
+                n_act += 1
+                dvdv += du2
+                wrwr += 0.5 * (wn0 * wn0 + wn1 * wn1 + wn2 * wn2 + wo0 * wo0 + wo1 * wo1 + wo2 * wo2)
+                dvdvrr += du2 * (b0 * b0 + b1 * b1 + b2 * b2)
+                wrr += 0.5 * (wn0 * n0 + wn1 * n1 + wn2 * n2 + wo0 * o0 + wo1 * o1 + wo2 * o2)
+                dvor += b0 * d0 + b1 * d1 + b2 * d2
+        it += 1
+        error = tol * _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
+        if error < tol:
+            return it, error, True
+    return it, error, False
+
+
+def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, SolverInfo]:
+    """Solve the contact problem by NLGS from its warm-start impulses.
+
+    Args:
+        problem: the assembled problem (frictionless or with Coulomb friction).
+        options: tolerance, sweep budget, check interval.
+
+    Returns:
+        ``(impulses, info)``: local impulses ``(P, 3)`` ``(r_n, r_t, r_s)`` in m sqrt(g d)
+        (tangential zeros when frictionless) and the :class:`SolverInfo`.
+    """
+    r0 = problem.initial_impulse
+    tol, max_it, every = float(options.tolerance), int(options.max_iterations), int(options.check_every)
+    if problem.frictional:
+        r = np.ascontiguousarray(r0, dtype=np.float64).copy()
+        v = problem.velocity(r)
+        it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v, tol, max_it, every)
+        impulse = r
+    else:
+        impulse = np.zeros((problem.n_points, 3))
+        impulse[:, 0] = r0[:, 0]
+        v = problem.velocity(impulse)
+        rn = np.array(r0[:, 0], dtype=np.float64)
+        it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every)
+        impulse[:, 0] = rn
+    return impulse, SolverInfo(iterations=int(it), error=float(err), converged=bool(ok))

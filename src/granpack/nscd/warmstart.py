@@ -1,0 +1,202 @@
+"""Warm start: the previous step's impulses carried over to the same contacts (PHYSICS.md §2.8).
+
+Identity of a contact point: the same pair of bodies (in either candidate/antagonist order, the
+wall being body -1) and a contact point within ``tolerance`` of the previous one **in the body
+frame of the new candidate i**. The periodic image is implied by the pair, because the cell is
+more than twice the interaction range (PHYSICS.md §2.10), so a pair whose shift changed only
+because one body was wrapped across the boundary keeps its impulses.
+
+The previous points were computed at the previous predicted configuration ``TT'`` and the new
+ones at ``TT``. Between the two, body i moved rigidly by ``h v^n`` and turned by ``h ω^n``
+(body frame; the two θ-split increments of the scheme compose to exactly this), so the old point
+in the old body frame is
+
+.. math::
+
+    b_{old} = Δ\\, R^{TT\\,T}\\, \\mathrm{mi}\\big(x_{old} - (x_i^{TT} - h v_i^n)\\big), \\qquad
+    Δ = \\mathrm{Rot}(h ω_i^n),
+
+(``mi``: minimum image in x, y), compared with ``b_new = R^{TT T}(x_new - x_i^{TT})``. The
+position correction moved bodies by far less than the tolerance and is ignored here. Each old
+point is used at most once (nearest first). The old world impulse ``P`` (on the old candidate;
+sign flipped if the roles swapped) gives the local impulse ``(max(0, P·n), P·t, P·s)``, the
+tangential part clipped to the friction disc ``μ r_n``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from granpack._numba import jit
+from granpack.contact.contacts import ContactSet
+
+__all__ = ["warm_impulses"]
+
+
+@jit
+def _rotate_body(phi, x):
+    """Numba: Rodrigues rotation of vector ``x`` by rotation vector ``phi`` (both tuples of 3)."""
+    angle = np.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    if angle < 1e-300:
+        return x[0], x[1], x[2]
+    k0, k1, k2 = phi[0] / angle, phi[1] / angle, phi[2] / angle
+    c, s = np.cos(angle), np.sin(angle)
+    kx0 = k1 * x[2] - k2 * x[1]
+    kx1 = k2 * x[0] - k0 * x[2]
+    kx2 = k0 * x[1] - k1 * x[0]
+    kd = (1.0 - c) * (k0 * x[0] + k1 * x[1] + k2 * x[2])
+    return x[0] * c + kx0 * s + k0 * kd, x[1] * c + kx1 * s + k1 * kd, x[2] * c + kx2 * s + k2 * kd
+
+
+@jit
+def _warm_kernel(
+    old_i, old_j, old_start, old_point, old_impulse,
+    new_i, new_j, new_start, new_point, normal, tangent,
+    x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out,
+):
+    n_bodies = x_tt.shape[0]
+    # CSR of old manifolds per body (each manifold listed under both of its particles)
+    count = np.zeros(n_bodies + 1, np.int64)
+    for m in range(old_i.shape[0]):
+        count[old_i[m] + 1] += 1
+        if old_j[m] >= 0:
+            count[old_j[m] + 1] += 1
+    start = np.cumsum(count)
+    fill = start[:-1].copy()
+    listed = np.empty(start[-1], np.int64)
+    for m in range(old_i.shape[0]):
+        listed[fill[old_i[m]]] = m
+        fill[old_i[m]] += 1
+        if old_j[m] >= 0:
+            listed[fill[old_j[m]]] = m
+            fill[old_j[m]] += 1
+    used = np.zeros(old_point.shape[0], np.bool_)
+    matched = 0
+    tol2 = tol * tol
+    for m in range(new_i.shape[0]):
+        i, j = new_i[m], new_j[m]
+        found = -1
+        sign = 1.0
+        for e in range(start[i], start[i + 1]):
+            o = listed[e]
+            if old_i[o] == i and old_j[o] == j:
+                found = o
+                break
+            if j >= 0 and old_i[o] == j and old_j[o] == i:
+                found = o
+                sign = -1.0
+                break
+        for k in range(new_start[m], new_start[m + 1]):
+            out[k, 0] = 0.0
+            out[k, 1] = 0.0
+            out[k, 2] = 0.0
+        if found < 0:
+            continue
+        rot = rot_tt[i]
+        phi = (h * omega[i, 0], h * omega[i, 1], h * omega[i, 2])
+        back0 = x_tt[i, 0] - h * velocity[i, 0]
+        back1 = x_tt[i, 1] - h * velocity[i, 1]
+        back2 = x_tt[i, 2] - h * velocity[i, 2]
+        for k in range(new_start[m], new_start[m + 1]):
+            d0 = new_point[k, 0] - x_tt[i, 0]
+            d1 = new_point[k, 1] - x_tt[i, 1]
+            d2 = new_point[k, 2] - x_tt[i, 2]
+            b0 = rot[0, 0] * d0 + rot[1, 0] * d1 + rot[2, 0] * d2
+            b1 = rot[0, 1] * d0 + rot[1, 1] * d1 + rot[2, 1] * d2
+            b2 = rot[0, 2] * d0 + rot[1, 2] * d1 + rot[2, 2] * d2
+            best = -1
+            best_d2 = tol2
+            for q in range(old_start[found], old_start[found + 1]):
+                if used[q]:
+                    continue
+                a0 = old_point[q, 0] - back0
+                a1 = old_point[q, 1] - back1
+                a2 = old_point[q, 2] - back2
+                a0 -= lx * np.round(a0 / lx)
+                a1 -= ly * np.round(a1 / ly)
+                c = (
+                    rot[0, 0] * a0 + rot[1, 0] * a1 + rot[2, 0] * a2,
+                    rot[0, 1] * a0 + rot[1, 1] * a1 + rot[2, 1] * a2,
+                    rot[0, 2] * a0 + rot[1, 2] * a1 + rot[2, 2] * a2,
+                )
+                o0, o1, o2 = _rotate_body(phi, c)
+                dist2 = (o0 - b0) ** 2 + (o1 - b1) ** 2 + (o2 - b2) ** 2
+                if dist2 < best_d2:
+                    best_d2 = dist2
+                    best = q
+            if best < 0:
+                continue
+            used[best] = True
+            matched += 1
+            p0, p1, p2 = sign * old_impulse[best, 0], sign * old_impulse[best, 1], sign * old_impulse[best, 2]
+            rn = max(0.0, p0 * normal[m, 0] + p1 * normal[m, 1] + p2 * normal[m, 2])
+            rt = p0 * tangent[k, 0, 0] + p1 * tangent[k, 0, 1] + p2 * tangent[k, 0, 2]
+            rs = p0 * tangent[k, 1, 0] + p1 * tangent[k, 1, 1] + p2 * tangent[k, 1, 2]
+            limit = mu * rn
+            norm = np.sqrt(rt * rt + rs * rs)
+            if norm > limit:
+                scale = limit / norm
+                rt *= scale
+                rs *= scale
+            out[k, 0], out[k, 1], out[k, 2] = rn, rt, rs
+    return matched
+
+
+def warm_impulses(
+    previous: ContactSet | None,
+    contacts: ContactSet,
+    tangent: np.ndarray,
+    x_tt: np.ndarray,
+    rot_tt: np.ndarray,
+    velocity: np.ndarray,
+    omega: np.ndarray,
+    time_step: float,
+    periods: tuple[float, float],
+    tolerance: float,
+    friction: float,
+) -> tuple[np.ndarray, int]:
+    """Local warm-start impulses of the new contact points from the previous step's solution.
+
+    Args:
+        previous: the previous step's contacts with their ``impulse`` (``None``: no warm start).
+        contacts: the new contacts, detected at the predicted configuration.
+        tangent: ``(P, 2, 3)`` tangent vectors of the new points.
+        x_tt: ``(N, 3)`` predicted centres (as given to detection), d.
+        rot_tt: ``(N, 3, 3)`` predicted rotation matrices.
+        velocity, omega: ``(N, 3)`` velocities at t_n (omega body frame).
+        time_step: h, sqrt(d/g).
+        periods: ``(lx, ly)``, d.
+        tolerance: matching distance in the body frame, d.
+        friction: μ (the tangential part is clipped to ``μ r_n``).
+
+    Returns:
+        ``((P, 3) local impulses, number of points matched)``.
+    """
+    p = contacts.n_points
+    out = np.zeros((p, 3))
+    if previous is None or previous.impulse is None or previous.n_points == 0 or p == 0:
+        return out, 0
+    matched = _warm_kernel(
+        np.ascontiguousarray(previous.body_i, dtype=np.int64),
+        np.ascontiguousarray(previous.body_j, dtype=np.int64),
+        np.ascontiguousarray(previous.point_start, dtype=np.int64),
+        np.ascontiguousarray(previous.point, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(previous.impulse, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(contacts.body_i, dtype=np.int64),
+        np.ascontiguousarray(contacts.body_j, dtype=np.int64),
+        np.ascontiguousarray(contacts.point_start, dtype=np.int64),
+        np.ascontiguousarray(contacts.point, dtype=np.float64).reshape(-1, 3),
+        np.ascontiguousarray(contacts.normal, dtype=np.float64).reshape(-1, 3),
+        tangent,
+        x_tt,
+        rot_tt,
+        velocity,
+        omega,
+        float(time_step),
+        float(periods[0]),
+        float(periods[1]),
+        float(tolerance),
+        float(friction),
+        out,
+    )
+    return out, int(matched)
