@@ -1,0 +1,586 @@
+"""The standard figures of a run and of a campaign, as PNG and SVG, drawn without a display.
+
+Figures are built as :class:`matplotlib.figure.Figure` objects without pyplot, so nothing here
+needs a GUI or changes the user's matplotlib backend (the Agg canvas renders them). Lengths are
+in d (the largest grain's circumscribed diameter).
+
+For a **run folder** (``analysis.json`` and ``final.gsd``), :func:`run_figures` writes into
+``<run>/figures/``: ``solid_fraction_profile``, ``pair_correlation``, ``homogeneity`` and
+``packing`` (a 3D picture, grains coloured by population).
+
+For a **campaign folder** (``runs.csv`` and the run folders), :func:`campaign_figures` writes into
+``<campaign>/figures/``:
+
+- ``solid_fraction`` and ``order``: bulk solid fraction and nematic order Q00 against the share
+  of the substituted grains, one curve per family, error bars = standard deviation over the
+  replicas; the left panel shows the size mixtures (spheres and isometric pinacoids, share of
+  small grains), the right panel the shape mixtures (elongated, flat, flat & elongated), which
+  start from the monodisperse isometric pinacoids (family ``pinacoids``, share 0);
+- ``coordination``: N, Ns, Nd, Nt against the share, one panel per family;
+- ``coordination_vs_order``: N against Q00 for every non-spherical run, with the fit
+  ``N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc))`` (PHYSICS.md §5g);
+- ``pair_correlation`` and ``homogeneity``: g(r) and the volume proportion profiles of the
+  chosen mixtures (default: all), one panel per family.
+
+A mixture's family and share come from the ``family`` and ``share`` keys of its campaign entry.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Iterable, Sequence
+
+import numpy as np
+import pandas as pd
+from matplotlib import colormaps
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Patch
+from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+from scipy.optimize import curve_fit
+
+from granpack.errors import InputError
+from granpack.io.vtk import grain_surfaces
+from granpack.packing import Packing
+
+__all__ = [
+    "FAMILIES",
+    "FORMATS",
+    "save_figure",
+    "render_packing",
+    "fit_coordination_order",
+    "run_figures",
+    "campaign_figures",
+    "make_figures",
+]
+
+#: file formats written for every figure
+FORMATS = ("png", "svg")
+#: known mixture families: name -> (legend label, marker, panel); panel "size" or "shape"
+FAMILIES: dict[str, tuple[str, str, str]] = {
+    "spheres": ("spheres", "o", "size"),
+    "pinacoids": ("isometric pinacoids", "s", "size"),
+    "elongated": ("elongated pinacoids", "^", "shape"),
+    "flat": ("flat pinacoids", "v", "shape"),
+    "flat-elongated": ("flat & elongated pinacoids", "D", "shape"),
+}
+_PANEL_XLABEL = {
+    "size": "share of small grains (size d/3), by volume",
+    "shape": "share of elongated / flat / flat & elongated grains, by volume",
+    "other": "share of substituted grains, by volume",
+}
+#: the shape families' share-0 point: monodisperse isometric pinacoids
+_REFERENCE_FAMILY = "pinacoids"
+_COORDINATION = (("coordination.N", "N"), ("coordination.Ns", "Ns"), ("coordination.Nd", "Nd"), ("coordination.Nt", "Nt"))
+
+
+def save_figure(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
+    """Save ``fig`` as ``out_dir/stem.png`` and ``out_dir/stem.svg`` (folder created).
+
+    Returns:
+        The files written.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for fmt in FORMATS:
+        path = out_dir / f"{stem}.{fmt}"
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+        paths.append(path)
+    return paths
+
+
+# --------------------------------------------------------------------------- 3D picture
+
+
+def render_packing(
+    packing: Packing,
+    *,
+    elev: float = 18.0,
+    azim: float = -60.0,
+    sphere_segments: int = 12,
+    size_inches: float = 7.0,
+) -> Figure:
+    """A 3D picture of the packing: true grain surfaces, coloured by population, lit from the viewer.
+
+    Polyhedra are drawn with their faces, spheres as tessellated surfaces; faces turned away
+    from the (orthographic) viewer are left out. Each grain is drawn at its wrapped centre, so
+    grains across a periodic side stick out of the cell.
+
+    Args:
+        packing: the packing.
+        elev: viewing elevation, degrees.
+        azim: viewing azimuth, degrees.
+        sphere_segments: meridians of each sphere's tessellation.
+        size_inches: figure width and height, inches.
+
+    Returns:
+        The figure (not shown; save it with :func:`save_figure`).
+    """
+    state = packing.state
+    surfaces = grain_surfaces(state, sphere_segments)
+    e, a = math.radians(elev), math.radians(azim)
+    eye = np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
+    light = eye + np.array([0.0, 0.0, 0.6])
+    light /= np.linalg.norm(light)
+    palette = colormaps["tab10"]
+    polygons: list[np.ndarray] = []
+    colours: list[np.ndarray] = []
+    edges: list[np.ndarray] = []
+    for k, faces in surfaces.faces.items():
+        owner, normal = surfaces.particle[k], surfaces.normal[k]
+        sphere = state.shapes.is_sphere[state.kind[owner]]
+        # tessellated spheres: keep facets near the silhouette, their normals are approximate
+        keep = normal @ eye > np.where(sphere, -0.35, 1e-9)
+        shade = 0.45 + 0.55 * np.clip(normal[keep] @ light, 0.0, 1.0)
+        base = np.array([palette(p % 10)[:3] for p in state.population[owner[keep]]]).reshape(-1, 3)
+        face_colour = np.clip(base * shade[:, None], 0.0, 1.0)
+        polygons.extend(surfaces.points[faces[keep]])
+        colours.append(face_colour)
+        # polyhedra show their edges; sphere facets do not
+        edges.append(np.where(sphere[keep, None], face_colour, 0.25 * face_colour))
+    fig = Figure(figsize=(size_inches, size_inches))
+    ax = fig.add_subplot(projection="3d")
+    ax.set_proj_type("ortho")
+    ax.view_init(elev=elev, azim=azim)
+    if polygons:
+        collection = Poly3DCollection(
+            polygons, facecolors=np.concatenate(colours), edgecolors=np.concatenate(edges), linewidths=0.2
+        )
+        collection.set_rasterized(True)  # keeps the SVG small; axes and labels stay vector
+        ax.add_collection3d(collection)
+    lx, ly = packing.box.lx, packing.box.ly
+    top = float((state.position[:, 2] + state.radius).max()) if state.n else 1.0
+    ax.plot([0, lx, lx, 0, 0], [0, 0, ly, ly, 0], [0, 0, 0, 0, 0], color="0.4", linewidth=0.8)
+    ax.set_xlim(0, lx)
+    ax.set_ylim(0, ly)
+    ax.set_zlim(0, top)
+    ax.set_box_aspect((lx, ly, top))
+    ax.set_xlabel("x (d)")
+    ax.set_ylabel("y (d)")
+    ax.set_zlabel("z (d)")
+    present = np.unique(state.population)
+    handles = [Patch(color=palette(p % 10), label=packing.population_names[p]) for p in present]
+    ax.legend(handles=handles, loc="upper left", title="population")
+    ax.set_title(f"{state.n} grains, cell {lx:g} d x {ly:g} d")
+    return fig
+
+
+# --------------------------------------------------------------------------- one run
+
+
+def _read_analysis(run_dir: Path) -> dict:
+    path = run_dir / "analysis.json"
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"{path}: not found (run `granpack analyze {run_dir}` first)") from None
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable analysis file ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(f"{path}: not an analysis file (expected a JSON object)")
+    return data
+
+
+def _array(value) -> np.ndarray:
+    """A list of numbers (``None`` -> NaN) as a float array; anything else -> empty."""
+    if not isinstance(value, list):
+        return np.zeros(0)
+    return np.array([math.nan if v is None else v for v in value], dtype=float)
+
+
+def _population_names(analysis: dict) -> list[str]:
+    names = []
+    for k, pop in enumerate(analysis.get("populations") or []):
+        names.append(str(pop.get("name", f"population {k}")) if isinstance(pop, dict) else str(pop))
+    return names
+
+
+def _homogeneity(analysis: dict) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Layer heights and the volume proportion profile of each population from an analysis."""
+    data = analysis.get("homogeneity") or {}
+    z = _array(data.get("z"))
+    proportions = data.get("proportions")
+    if isinstance(proportions, list):
+        names = _population_names(analysis)
+        proportions = {names[k] if k < len(names) else f"population {k}": p for k, p in enumerate(proportions)}
+    if not isinstance(proportions, dict):
+        return z, {}
+    profiles = {str(name): _array(p) for name, p in proportions.items()}
+    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and len(z)}
+
+
+def _plot_profile(ax: Axes, analysis: dict) -> bool:
+    sf = analysis.get("solid_fraction") or {}
+    z, phi = _array(sf.get("profile_z")), _array(sf.get("profile_phi"))
+    if not len(z) or len(z) != len(phi):
+        return False
+    ax.plot(phi, z, color="C0", label="slice average")
+    bulk, std = sf.get("bulk"), sf.get("std")
+    if isinstance(bulk, (int, float)) and math.isfinite(bulk):
+        label = f"bulk {bulk:.4f}" + (f" ± {std:.4f}" if isinstance(std, (int, float)) else "")
+        ax.axvline(bulk, color="C3", linestyle="--", label=label)
+    ax.set_xlabel("solid fraction φ")
+    ax.set_ylabel("height z (d)")
+    ax.legend(loc="best")
+    return True
+
+
+def _plot_gr(ax: Axes, r: np.ndarray, g: np.ndarray, **style) -> None:
+    ax.plot(r, g, **style)
+    ax.set_xlabel("distance between centres r (d)")
+    ax.set_ylabel("pair correlation g(r)")
+
+
+def run_figures(run_dir: str | Path) -> list[Path]:
+    """The figures of one run folder, written into ``<run_dir>/figures/``.
+
+    Args:
+        run_dir: a run folder with ``analysis.json`` (and ``final.gsd`` for the 3D picture).
+
+    Returns:
+        The files written.
+
+    Raises:
+        InputError: no readable ``analysis.json``, or an unreadable ``final.gsd``.
+    """
+    from granpack.io.gsd import read_packing
+
+    run_dir = Path(run_dir)
+    analysis = _read_analysis(run_dir)
+    out = run_dir / "figures"
+    written: list[Path] = []
+
+    fig = Figure(figsize=(4.5, 6))
+    if _plot_profile(fig.add_subplot(), analysis):
+        written += save_figure(fig, out, "solid_fraction_profile")
+
+    r, g = _pair_correlation(analysis)
+    if len(r):
+        fig = Figure(figsize=(6, 4))
+        ax = fig.add_subplot()
+        _plot_gr(ax, r, g, color="C0", label="all grains")
+        ax.axhline(1.0, color="0.5", linewidth=0.8)
+        ax.legend()
+        written += save_figure(fig, out, "pair_correlation")
+
+    z, profiles = _homogeneity(analysis)
+    if profiles:
+        fig = Figure(figsize=(4.5, 6))
+        ax = fig.add_subplot()
+        for name, p in profiles.items():
+            ax.plot(p, z, marker=".", label=name)
+        ax.set_xlabel("proportion of the solid volume")
+        ax.set_ylabel("height z (d)")
+        ax.set_xlim(-0.02, 1.02)
+        ax.legend(title="population")
+        written += save_figure(fig, out, "homogeneity")
+
+    final = run_dir / "final.gsd"
+    if final.is_file():
+        written += save_figure(render_packing(read_packing(final)), out, "packing")
+    return written
+
+
+# --------------------------------------------------------------------------- campaign
+
+
+def _read_runs(campaign_dir: Path) -> pd.DataFrame:
+    path = campaign_dir / "runs.csv"
+    if not path.is_file():
+        raise InputError(f"{campaign_dir}: no runs.csv (not a campaign folder; run `granpack campaign` first)")
+    try:
+        runs = pd.read_csv(path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a readable runs table ({exc})") from None
+    missing = [c for c in ("path", "mixture", "family", "share", "shapes", "status") if c not in runs.columns]
+    if missing:
+        raise InputError(f"{path}: not a granpack runs table (no column '{missing[0]}')")
+    runs["family"] = runs["family"].fillna("").astype(str)
+    return runs[runs["status"] == "done"].reset_index(drop=True)
+
+
+def _panel(family: str) -> str:
+    return FAMILIES[family][2] if family in FAMILIES else "other"
+
+
+def _label(family: str) -> str:
+    return FAMILIES[family][0] if family in FAMILIES else (family or "no family")
+
+
+def _marker(family: str) -> str:
+    return FAMILIES[family][1] if family in FAMILIES else "x"
+
+
+def _families(runs: pd.DataFrame) -> list[str]:
+    """Families in the order of :data:`FAMILIES`, then the others in table order."""
+    present = list(dict.fromkeys(runs["family"].tolist()))
+    return [f for f in FAMILIES if f in present] + [f for f in present if f not in FAMILIES]
+
+
+def _series(runs: pd.DataFrame, family: str, column: str) -> pd.DataFrame:
+    """Mean, std and count of ``column`` per share for one family (shape families get the
+    isometric reference at share 0)."""
+    if column not in runs:
+        return pd.DataFrame(columns=["share", "mean", "std", "count"])
+    rows = runs[runs["family"] == family]
+    if _panel(family) == "shape" and not (rows["share"] == 0).any():
+        reference = runs[(runs["family"] == _REFERENCE_FAMILY) & (runs["share"] == 0)]
+        rows = pd.concat([reference, rows])
+    rows = rows[rows["share"].notna() & rows[column].notna()]
+    stats = rows.groupby("share")[column].agg(["mean", "std", "count"]).reset_index().sort_values("share")
+    stats["std"] = stats["std"].fillna(0.0)
+    return stats
+
+
+def _errorbar(ax: Axes, stats: pd.DataFrame, **style) -> None:
+    ax.errorbar(100 * stats["share"], stats["mean"], yerr=stats["std"], capsize=3, **style)
+
+
+def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str) -> Figure | None:
+    """One panel per group of families (size / shape / other) of ``column`` against the share."""
+    if column not in runs or runs[column].notna().sum() == 0:
+        return None
+    groups: dict[str, list] = {}
+    for family in _families(runs):
+        if len(_series(runs, family, column)):
+            groups.setdefault(_panel(family), []).append(family)
+    if not groups:
+        return None
+    fig = Figure(figsize=(5.5 * len(groups), 4.2))
+    axes = fig.subplots(1, len(groups), squeeze=False, sharey=True)[0]
+    for ax, panel in zip(axes, [p for p in ("size", "shape", "other") if p in groups]):
+        for family in groups[panel]:
+            _errorbar(ax, _series(runs, family, column), marker=_marker(family), label=_label(family))
+        ax.set_xlabel(f"{_PANEL_XLABEL[panel]} (%)")
+        ax.legend()
+    axes[0].set_ylabel(ylabel)
+    fig.suptitle(title)
+    return fig
+
+
+def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
+    families = [f for f in _families(runs) if any(len(_series(runs, f, c)) for c, _ in _COORDINATION)]
+    if not families:
+        return None
+    fig = Figure(figsize=(4.5 * len(families), 4.2))
+    axes = fig.subplots(1, len(families), squeeze=False, sharey=True)[0]
+    for ax, family in zip(axes, families):
+        for k, (column, name) in enumerate(_COORDINATION):
+            stats = _series(runs, family, column)
+            if len(stats):
+                _errorbar(ax, stats, marker="osDv"[k], color=f"C{k}", label=name)
+        ax.set_title(_label(family))
+        ax.set_xlabel(f"{_PANEL_XLABEL[_panel(family)]} (%)")
+        ax.legend()
+    axes[0].set_ylabel("contacts per grain (bulk)")
+    fig.suptitle("Coordination: all (N), simple (Ns), double (Nd), triple (Nt) contacts")
+    return fig
+
+
+def _exponential(q: np.ndarray, n0: float, n1: float, qc: float) -> np.ndarray:
+    return n0 + (n1 - n0) * (1.0 - np.exp(-q / qc))
+
+
+def fit_coordination_order(q: Sequence[float], n: Sequence[float]) -> dict[str, float]:
+    """Least-squares fit of N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc)) (PHYSICS.md §5g).
+
+    Bounds N0, N1 > 0, Qc > 0; initial guess N0 = N at the smallest Q, N1 = largest N, Qc = 0.2.
+
+    Args:
+        q: nematic order Q00 of each packing.
+        n: coordination number N of each packing.
+
+    Returns:
+        ``{"N0", "N1", "Qc", "N0_err", "N1_err", "Qc_err", "rms"}`` (errors: square roots of the
+        covariance diagonal; rms: root mean square residual).
+
+    Raises:
+        ValueError: fewer than 4 finite points, or the fit does not converge.
+    """
+    q, n = np.asarray(q, dtype=float), np.asarray(n, dtype=float)
+    ok = np.isfinite(q) & np.isfinite(n)
+    q, n = q[ok], n[ok]
+    if len(q) < 4:
+        raise ValueError(f"the fit needs at least 4 packings with finite Q00 and N (got {len(q)})")
+    guess = (max(n[np.argmin(q)], 1e-6), max(n.max(), 2e-6), 0.2)
+    try:
+        params, cov = curve_fit(_exponential, q, n, p0=guess, bounds=((0.0, 0.0, 1e-6), (np.inf, np.inf, np.inf)))
+    except RuntimeError as exc:
+        raise ValueError(f"the fit did not converge ({exc})") from None
+    errors = np.sqrt(np.abs(np.diag(cov)))
+    rms = float(np.sqrt(np.mean((_exponential(q, *params) - n) ** 2)))
+    return {
+        "N0": float(params[0]),
+        "N1": float(params[1]),
+        "Qc": float(params[2]),
+        "N0_err": float(errors[0]),
+        "N1_err": float(errors[1]),
+        "Qc_err": float(errors[2]),
+        "rms": rms,
+    }
+
+
+def _coordination_vs_order(runs: pd.DataFrame) -> Figure | None:
+    if "order.Q00" not in runs or "coordination.N" not in runs:
+        return None
+    grains = runs[~runs["shapes"].astype(str).str.contains("sphere")]
+    grains = grains[grains["order.Q00"].notna() & grains["coordination.N"].notna()]
+    if not len(grains):
+        return None
+    fig = Figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    for family in _families(grains):
+        rows = grains[grains["family"] == family]
+        ax.plot(rows["order.Q00"], rows["coordination.N"], linestyle="none", marker=_marker(family), label=_label(family))
+    try:
+        fit = fit_coordination_order(grains["order.Q00"], grains["coordination.N"])
+    except ValueError:
+        fit = None
+    if fit is not None:
+        q = np.linspace(0.0, float(grains["order.Q00"].max()) * 1.05, 200)
+        label = (
+            f"fit N0 = {fit['N0']:.2f} ± {fit['N0_err']:.2f}, N1 = {fit['N1']:.2f} ± {fit['N1_err']:.2f},\n"
+            f"Qc = {fit['Qc']:.3f} ± {fit['Qc_err']:.3f} (rms {fit['rms']:.3f})"
+        )
+        ax.plot(q, _exponential(q, fit["N0"], fit["N1"], fit["Qc"]), color="k", label=label)
+    ax.set_xlabel("nematic order $Q^2_{00}$")
+    ax.set_ylabel("coordination number N (bulk)")
+    ax.legend(fontsize="small")
+    ax.set_title("Coordination against orientational order (one point per packing)")
+    return fig
+
+
+def _chosen(runs: pd.DataFrame, mixtures: Iterable[str] | None) -> pd.DataFrame:
+    if mixtures is None:
+        return runs
+    mixtures = list(mixtures)
+    unknown = [m for m in mixtures if m not in set(runs["mixture"])]
+    if unknown:
+        raise InputError(f"--mixture: no finished run of mixture '{unknown[0]}' in this campaign")
+    return runs[runs["mixture"].isin(mixtures)]
+
+
+def _pair_correlation(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
+    """``(r, g)`` from an analysis (empty arrays when absent or inconsistent)."""
+    pc = analysis.get("pair_correlation") or {}
+    r, g = _array(pc.get("r")), _array(pc.get("g"))
+    return (r, g) if len(r) and len(r) == len(g) else (np.zeros(0), np.zeros(0))
+
+
+def _share_colour(share: float):
+    return colormaps["viridis"](0.9 * share) if math.isfinite(share) else "k"
+
+
+def _family_axes(families: list[str], height: float) -> tuple[Figure, np.ndarray]:
+    fig = Figure(figsize=(5 * len(families), height))
+    axes = fig.subplots(1, len(families), squeeze=False, sharey=True)[0]
+    for ax, family in zip(axes, families):
+        ax.set_title(_label(family))
+    return fig, axes
+
+
+def _pair_correlation_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None:
+    """g(r) of each mixture (mean over its replicas with the same r grid), one panel per family."""
+    curves: dict[str, list] = {}
+    for (family, mixture, share), rows in runs.groupby(["family", "mixture", "share"], sort=False, dropna=False):
+        pairs = [_pair_correlation(_read_analysis(campaign_dir / p)) for p in rows["path"]]
+        pairs = [(r, g) for r, g in pairs if len(r)]
+        if not pairs:
+            continue
+        r0 = pairs[0][0]
+        same = [g for r, g in pairs if len(r) == len(r0) and np.allclose(r, r0)]
+        curves.setdefault(family, []).append((mixture, share, r0, np.mean(same, axis=0)))
+    if not curves:
+        return None
+    fig, axes = _family_axes([f for f in _families(runs) if f in curves], 4.5)
+    for ax, family in zip(axes, [f for f in _families(runs) if f in curves]):
+        for mixture, share, r, g in curves[family]:
+            _plot_gr(ax, r, g, color=_share_colour(share), label=mixture, linewidth=1.0)
+        ax.axhline(1.0, color="0.5", linewidth=0.8)
+        ax.legend(fontsize="x-small")
+    fig.suptitle("Pair correlation of the centres (bulk, mean over replicas)")
+    return fig
+
+
+def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None:
+    """Volume proportion profiles of the substituted populations (all but the first) of each
+    mixture's first replica, one panel per family; dotted: the nominal share."""
+    curves: dict[str, list] = {}
+    for (family, mixture, share), rows in runs.groupby(["family", "mixture", "share"], sort=False, dropna=False):
+        z, profiles = _homogeneity(_read_analysis(campaign_dir / rows["path"].iloc[0]))
+        substituted = list(profiles.items())[1:]
+        if substituted:
+            curves.setdefault(family, []).append((mixture, share, z, substituted))
+    if not curves:
+        return None
+    families = [f for f in _families(runs) if f in curves]
+    fig, axes = _family_axes(families, 6.0)
+    for ax, family in zip(axes, families):
+        for mixture, share, z, substituted in curves[family]:
+            colour = _share_colour(share)
+            for k, (name, p) in enumerate(substituted):
+                ax.plot(p, z, color=colour, linestyle=("-", "--", "-.")[k % 3], label=f"{mixture}: {name}")
+            if len(substituted) == 1 and math.isfinite(share):
+                ax.axvline(share, color=colour, linewidth=0.6, linestyle=":")
+        ax.set_xlabel("proportion of the solid volume")
+        ax.set_xlim(-0.02, 1.02)
+        ax.legend(fontsize="x-small")
+    axes[0].set_ylabel("height z (d)")
+    fig.suptitle("Homogeneity: volume proportion of the substituted grains per layer")
+    return fig
+
+
+def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = None) -> list[Path]:
+    """The campaign figures (module docstring), written into ``<campaign_dir>/figures/``.
+
+    Args:
+        campaign_dir: a folder written by ``granpack campaign`` (``runs.csv`` and run folders).
+        mixtures: mixtures drawn in the g(r) and homogeneity figures (default: all).
+
+    Returns:
+        The files written.
+
+    Raises:
+        InputError: no readable ``runs.csv``, or an unknown mixture name.
+    """
+    campaign_dir = Path(campaign_dir)
+    runs = _read_runs(campaign_dir)
+    out = campaign_dir / "figures"
+    chosen = _chosen(runs, mixtures)
+    figures = {
+        "solid_fraction": _versus_share(runs, "solid_fraction.bulk", "bulk solid fraction φ", "Solid fraction"),
+        "order": _versus_share(runs, "order.Q00", "nematic order $Q^2_{00}$", "Orientational order"),
+        "coordination": _coordination_figure(runs),
+        "coordination_vs_order": _coordination_vs_order(runs),
+        "pair_correlation": _pair_correlation_figure(campaign_dir, chosen),
+        "homogeneity": _homogeneity_figure(campaign_dir, chosen),
+    }
+    written: list[Path] = []
+    for stem, fig in figures.items():
+        if fig is not None:
+            written += save_figure(fig, out, stem)
+    return written
+
+
+def make_figures(folder: str | Path, mixtures: Iterable[str] | None = None) -> list[Path]:
+    """Figures of a campaign folder (it has ``runs.csv``) or of a run folder.
+
+    Args:
+        folder: the folder.
+        mixtures: campaign only: the mixtures of the g(r) and homogeneity figures.
+
+    Raises:
+        InputError: the folder is neither, or ``mixtures`` is given for a run folder.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(f"{folder}: no such folder")
+    if (folder / "runs.csv").is_file():
+        return campaign_figures(folder, mixtures)
+    if mixtures:
+        raise InputError(f"--mixture applies to campaign folders only ({folder} has no runs.csv)")
+    if not (folder / "analysis.json").is_file():
+        raise InputError(f"{folder}: neither a campaign folder (runs.csv) nor an analysed run folder (analysis.json)")
+    return run_figures(folder)

@@ -1,0 +1,155 @@
+"""Figures of a campaign (from a synthetic results table) and of a run (from a hand-built packing)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.image import imread
+
+from granpack.box import Box
+from granpack.contact.contacts import ContactSet
+from granpack.errors import InputError
+from granpack.figures import campaign_figures, fit_coordination_order, make_figures, render_packing, save_figure
+from granpack.packing import Packing
+from granpack.rotations import random_quaternions
+from granpack.shapes import Pinacoid, ShapeTable, Sphere
+from granpack.state import ParticleState
+
+FAMILIES = {  # family -> (shares, shape of the runs)
+    "spheres": ((0.0, 0.13, 0.30), "sphere"),
+    "pinacoids": ((0.0, 0.30, 1.0), "pinacoid"),
+    "flat": ((0.28, 0.77, 1.0), "pinacoid"),
+}
+
+
+def _analysis(rng, share: float, seed: int, order: float) -> dict:
+    z = np.arange(0.5, 8.0, 1.0)
+    r = np.linspace(0.01, 3.0, 150)
+    coordination = 4.0 + 2.0 * (1.0 - math.exp(-order / 0.2)) + 0.05 * rng.standard_normal()
+    return {
+        "solid_fraction": {
+            "bulk": 0.62 + 0.1 * share * (1 - share) + 0.005 * rng.standard_normal(),
+            "std": 0.01,
+            "profile_z": z.tolist(),
+            "profile_phi": (0.6 + 0.02 * rng.standard_normal(len(z))).tolist(),
+        },
+        "coordination": {"N": coordination, "Ns": 2.0, "Nd": 1.5, "Nt": 0.5, "Nc": 6.5, "rattler_fraction": 0.02},
+        "order": {"Q00": order, "Q22": 0.01, "director": [0.0, 0.0, 1.0]},
+        "pair_correlation": {"r": r.tolist(), "g": (1.0 + np.exp(-r) * np.cos(6 * r)).tolist()},
+        "equilibrium": {"max_net_force": 1e-5, "max_net_torque": 1e-5, "kinetic_energy": 1e-10, "wall_force_over_weight": 1.0},
+        "interpenetration": {"max": 1e-3, "mean": 1e-4, "expansion_k": 1.001},
+        "homogeneity": {"z": z.tolist(), "proportions": {"large": (1 - share + 0 * z).tolist(), "small": (share + 0 * z).tolist()}},
+        "n_particles": 100,
+        "populations": [{"name": "large"}, {"name": "small"}],
+        "seed": seed,
+        "version": "test",
+    }
+
+
+@pytest.fixture
+def campaign_dir(tmp_path, rng):
+    """A campaign folder as `granpack campaign` leaves it: runs.csv and analysed run folders."""
+    from granpack.campaign.store import flatten
+
+    rows = []
+    for family, (shares, shape) in FAMILIES.items():
+        for share in shares:
+            mixture = f"{family}-{round(100 * share)}"
+            for seed in (1, 2):
+                analysis = _analysis(rng, share, seed, order=0.0 if shape == "sphere" else 0.05 + 0.5 * share)
+                run_dir = tmp_path / mixture / f"seed-{seed}"
+                run_dir.mkdir(parents=True)
+                (run_dir / "analysis.json").write_text(json.dumps(analysis))
+                row = dict(path=f"{mixture}/seed-{seed}", mixture=mixture, family=family, share=share, shapes=shape,
+                           replica=seed - 1, seed=seed, status="done", error=None)
+                row.update(flatten(analysis))
+                rows.append(row)
+    rows.append(dict(path="broken/seed-1", mixture="broken", family="flat", share=0.5, shapes="pinacoid", replica=0,
+                     seed=1, status="failed", error="RuntimeError: boom"))
+    pd.DataFrame(rows).to_csv(tmp_path / "runs.csv", index=False)
+    return tmp_path
+
+
+def _check_images(paths):
+    assert paths
+    for path in paths:
+        assert path.stat().st_size > 0
+        if path.suffix == ".png":
+            image = imread(path)
+            assert image.ndim == 3 and image.shape[0] > 50 and image.shape[1] > 50
+            assert image[..., :3].std() > 0.01  # not a blank canvas
+        else:
+            assert path.read_text().lstrip().startswith("<?xml")
+
+
+def test_campaign_figures_written(campaign_dir):
+    paths = campaign_figures(campaign_dir)
+    names = {p.name for p in paths}
+    for stem in ("solid_fraction", "order", "coordination", "coordination_vs_order", "pair_correlation", "homogeneity"):
+        assert f"{stem}.png" in names and f"{stem}.svg" in names
+    assert all(p.parent == campaign_dir / "figures" for p in paths)
+    _check_images(paths)
+
+
+def test_campaign_figures_chosen_mixtures_and_dispatch(campaign_dir):
+    paths = make_figures(campaign_dir, mixtures=["flat-28"])
+    assert (campaign_dir / "figures" / "pair_correlation.png") in paths
+    with pytest.raises(InputError, match="--mixture.*nope"):
+        make_figures(campaign_dir, mixtures=["nope"])
+
+
+def test_figures_bad_folders(tmp_path):
+    with pytest.raises(InputError, match="no such folder"):
+        make_figures(tmp_path / "absent")
+    with pytest.raises(InputError, match="neither a campaign folder"):
+        make_figures(tmp_path)
+
+
+def test_fit_recovers_exponential_law(rng):
+    q = np.linspace(0.0, 0.8, 25)
+    n = 4.2 + (6.8 - 4.2) * (1 - np.exp(-q / 0.15)) + 0.01 * rng.standard_normal(len(q))
+    fit = fit_coordination_order(q, n)
+    assert fit["N0"] == pytest.approx(4.2, abs=0.05)
+    assert fit["N1"] == pytest.approx(6.8, abs=0.05)
+    assert fit["Qc"] == pytest.approx(0.15, abs=0.02)
+    assert fit["rms"] < 0.02
+    with pytest.raises(ValueError, match="at least 4"):
+        fit_coordination_order([0.1, 0.2, 0.3], [4, 5, 6])
+
+
+def _mixed_packing(rng) -> Packing:
+    """Spheres and pinacoids on a loose grid (no contacts needed for a picture)."""
+    shapes = ShapeTable.from_shapes([Sphere(1.0), Pinacoid.from_size(1.0, 2.0, 3.0)])
+    grid = np.array([(x, y, z) for x in range(3) for y in range(3) for z in range(2)], dtype=float) + 0.5
+    n = len(grid)
+    kind = np.arange(n) % 2
+    state = ParticleState(
+        box=Box.square(3.0), shapes=shapes, kind=kind, population=kind, position=grid,
+        quaternion=random_quaternions(n, rng),
+    )
+    return Packing(state, ContactSet.empty(), 5e-3, ["spheres", "flat-elongated"], {"seed": 3})
+
+
+def test_render_packing_draws_every_grain(tmp_path, rng):
+    packing = _mixed_packing(rng)
+    fig = render_packing(packing)
+    ax = fig.axes[0]
+    n_faces = len(ax.collections[0].get_facecolor())
+    # 9 spheres of 72 facets (12 meridians) and 9 pinacoids of 8 faces; back faces are culled
+    assert 9 * (8 + 72) // 3 < n_faces < 9 * (8 + 72)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["spheres", "flat-elongated"]
+    _check_images(save_figure(fig, tmp_path, "packing"))
+
+
+def test_run_figures(tmp_path, rng):
+    gsd_io = pytest.importorskip("granpack.io.gsd", reason="granpack.io.gsd not written yet")
+    packing = _mixed_packing(rng)
+    gsd_io.write_packing(tmp_path / "final.gsd", packing)
+    (tmp_path / "analysis.json").write_text(json.dumps(_analysis(rng, 0.3, 3, 0.2)))
+    paths = make_figures(tmp_path)
+    assert {p.stem for p in paths} == {"solid_fraction_profile", "pair_correlation", "homogeneity", "packing"}
+    _check_images(paths)
