@@ -103,9 +103,17 @@ def campaign(
 
 
 @app.command()
-def figures(run_dir: Path = typer.Argument(..., help="A run or campaign folder.")) -> None:
-    """PNG/SVG figures for a run or a campaign."""
-    _not_yet("figures")
+def figures(
+    run_dir: Path = typer.Argument(..., help="A run or campaign folder."),
+    mixture: Optional[list[str]] = typer.Option(
+        None, "--mixture", help="Campaign: a mixture to show in the g(r) and homogeneity figures (repeatable; default all)."
+    ),
+) -> None:
+    """PNG/SVG figures for a run or a campaign, written into RUN_DIR/figures/."""
+    from granpack.figures import make_figures
+
+    paths = make_figures(run_dir, mixtures=mixture or None)
+    typer.echo(f"{len(paths)} files in {run_dir / 'figures'}: {', '.join(sorted({p.stem for p in paths}))}")
 
 
 @app.command()
@@ -113,8 +121,22 @@ def export(
     run_dir: Path = typer.Argument(..., help="A run folder."),
     format: str = typer.Option("vtk", "--format", help="vtk or png."),
 ) -> None:
-    """Files for ParaView (vtk) or a rendered picture (png)."""
-    _not_yet("export")
+    """Files for ParaView (vtk: RUN_DIR/vtk/*.vtu) or a rendered picture (png: RUN_DIR/packing.png)."""
+    formats = ("vtk", "png")
+    if format not in formats:
+        raise InputError(f"--format must be one of {', '.join(formats)} (got {format!r})")
+    from granpack.io.gsd import read_packing
+
+    packing = read_packing(run_dir / "final.gsd")
+    if format == "vtk":
+        from granpack.io.vtk import write_vtk
+
+        paths = write_vtk(packing, run_dir / "vtk")
+    else:
+        from granpack.figures import render_packing, save_figure
+
+        paths = save_figure(render_packing(packing), run_dir, "packing", formats=("png",))
+    typer.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -76,17 +77,30 @@ _REFERENCE_FAMILY = "pinacoids"
 _COORDINATION = (("coordination.N", "N"), ("coordination.Ns", "Ns"), ("coordination.Nd", "Nd"), ("coordination.Nt", "Nt"))
 
 
-def save_figure(fig: Figure, out_dir: Path, stem: str) -> list[Path]:
-    """Save ``fig`` as ``out_dir/stem.png`` and ``out_dir/stem.svg`` (folder created).
+def save_figure(fig: Figure, out_dir: Path, stem: str, formats: Sequence[str] = FORMATS) -> list[Path]:
+    """Save ``fig`` as ``out_dir/stem.<format>`` for each format (folder created; each file
+    written under a temporary name and renamed).
+
+    Args:
+        fig: the figure.
+        out_dir: the folder.
+        stem: the file name without extension.
+        formats: matplotlib file formats, default PNG (150 dpi) and SVG.
 
     Returns:
         The files written.
     """
+    out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = []
-    for fmt in FORMATS:
+    for fmt in formats:
         path = out_dir / f"{stem}.{fmt}"
-        fig.savefig(path, dpi=150, bbox_inches="tight")
+        tmp = out_dir / f".{stem}.tmp.{fmt}"
+        try:
+            fig.savefig(tmp, format=fmt, dpi=150, bbox_inches="tight")
+            os.replace(tmp, path)
+        finally:
+            tmp.unlink(missing_ok=True)
         paths.append(path)
     return paths
 
