@@ -1,0 +1,255 @@
+"""Campaigns: spec validation, the results store, and a tiny campaign end to end on Dask."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from granpack.campaign import campaign_from_dict, load_campaign, run_campaign
+from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row, summary_table, write_task
+from granpack.cli import main
+from granpack.errors import InputError
+
+TINY = textwrap.dedent(
+    """
+    replicas = 2
+    [base]
+    seed = 11
+    n_particles = 30
+    lateral_size = 3.0
+    [base.equilibrium]
+    max_time = 5.0
+
+    [[mixtures]]
+    name = "mono"
+    family = "spheres"
+    share = 0.0
+    [[mixtures.populations]]
+    shape = "sphere"
+    size = 1.0
+    volume_fraction = 1.0
+
+    [[mixtures]]
+    name = "bi-30"
+    family = "spheres"
+    share = 0.3
+    lateral_size = 2.5
+    [mixtures.equilibrium]
+    max_time = 6.0
+    [[mixtures.populations]]
+    name = "large"
+    shape = "sphere"
+    size = 1.0
+    volume_fraction = 0.7
+    [[mixtures.populations]]
+    name = "small"
+    shape = "sphere"
+    size = 0.5
+    volume_fraction = 0.3
+    """
+)
+
+
+def _tiny_dict() -> dict:
+    import tomllib
+
+    return tomllib.loads(TINY)
+
+
+# ----------------------------------------------------------------------------- spec
+
+
+def test_spec_runs_seeds_folders_and_overrides():
+    spec = campaign_from_dict(_tiny_dict())
+    assert [(r.mixture, r.seed, r.replica) for r in spec.runs] == [
+        ("mono", 11, 0), ("mono", 12, 1), ("bi-30", 11, 0), ("bi-30", 12, 1)
+    ]
+    assert [r.folder.as_posix() for r in spec.runs[:2]] == ["mono/seed-11", "mono/seed-12"]
+    bi = spec.runs[2].config
+    assert bi["lateral_size"] == 2.5 and bi["n_particles"] == 30
+    assert bi["equilibrium"] == {"max_time": 6.0}
+    assert spec.runs[0].config["lateral_size"] == 3.0 and spec.runs[0].config["equilibrium"] == {"max_time": 5.0}
+    assert spec.runs[2].family == "spheres" and spec.runs[2].share == 0.3 and spec.runs[2].shapes == "sphere"
+
+
+def test_example_campaigns_load():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    study, small = load_campaign(root / "study.toml"), load_campaign(root / "study-small.toml")
+    assert len(study.mixtures) == len(small.mixtures) == 30
+    assert len(study.runs) == 90 and len(small.runs) == 30
+    assert {m.name for m in study.mixtures} == {m.name for m in small.mixtures}
+    shares = {f: sorted(round(100 * m.share) for m in study.mixtures if m.family == f) for f in
+              ("spheres", "pinacoids", "elongated", "flat", "flat-elongated")}
+    assert shares == {
+        "spheres": [0, 3, 13, 23, 30, 41, 55],
+        "pinacoids": [0, 13, 30, 51, 64, 100],
+        "elongated": [14, 20, 36, 49, 70, 100],
+        "flat": [12, 28, 47, 77, 92, 100],
+        "flat-elongated": [14, 29, 50, 70, 100],
+    }
+    assert all(r.config["n_particles"] == 3000 for r in study.runs)
+    assert all(200 <= r.config["n_particles"] <= 1000 for r in small.runs)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d.update(replica=2), "unknown key 'replica'"),
+        (lambda d: d.update(replicas=0), "replicas must be an integer >= 1"),
+        (lambda d: d.update(mixtures=[]), "mixtures must be a non-empty list"),
+        (lambda d: d["mixtures"][1].update(name="mono"), r"mixtures\[1\].name 'mono' is used"),
+        (lambda d: d["mixtures"][0].update(name="a/b"), r"mixtures\[0\].name must be a folder name"),
+        (lambda d: d["mixtures"][0].update(share=30), r"mixtures\[0\] \(mono\).share must be a number in \[0, 1\]"),
+        (lambda d: d["mixtures"][0].pop("populations"), r"mixtures\[0\] \(mono\).populations"),
+        (lambda d: d["mixtures"][0].update(seed=3), r"mixtures\[0\] \(mono\).seed is not allowed"),
+        (lambda d: d["base"].update(populations=[]), "base.populations is not allowed"),
+        (lambda d: d["mixtures"][1]["populations"][1].update(size=-1.0),
+         r"mixtures\[1\] \(bi-30\): populations\[1\].size: must be > 0"),
+        (lambda d: d["mixtures"][1].update(lateral_size=1.0), r"mixtures\[1\] \(bi-30\): lateral_size: must exceed"),
+        (lambda d: d["base"].update(n_particle=3), r"mixtures\[0\] \(mono\): n_particle: unknown key"),
+    ],
+)
+def test_spec_errors_are_one_line(change, message):
+    data = _tiny_dict()
+    change(data)
+    with pytest.raises(InputError, match=message) as info:
+        campaign_from_dict(data, source="c.toml")
+    assert str(info.value).startswith("c.toml: ") and "\n" not in str(info.value)
+
+
+def test_campaign_command_bad_spec_exits_2(tmp_path, capsys):
+    path = tmp_path / "c.toml"
+    path.write_text(TINY.replace("replicas = 2", "replicas = -1"))
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(path), "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: {path}: replicas") and len(err.splitlines()) == 1
+    assert not (tmp_path / "out").exists()
+    path.write_text("replicas = [")
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(path), "--out", str(tmp_path / "out")])
+    assert info.value.code == 2
+
+
+def test_workers_option_checked(tmp_path):
+    spec = campaign_from_dict(_tiny_dict())
+    with pytest.raises(InputError, match="--workers must be >= 1"):
+        run_campaign(spec, tmp_path, workers=0)
+    with pytest.raises(InputError, match="--workers applies to the local cluster only"):
+        run_campaign(spec, tmp_path, workers=2, scheduler="tcp://127.0.0.1:1")
+
+
+# ----------------------------------------------------------------------------- store
+
+
+def _fake_analysis(seed: int, phi: float) -> dict:
+    data = {key: {} for key in ANALYSIS_KEYS}
+    data.update(
+        solid_fraction={"bulk": phi, "std": 0.01, "profile_z": [0.5, 1.5], "profile_phi": [0.6, 0.6]},
+        coordination={"N": 6.0, "Ns": 6.0, "Nd": 0.0, "Nt": 0.0, "Nc": 6.0, "rattler_fraction": None},
+        order={"Q00": 0.02, "Q22": 0.01, "director": [0, 0, 1]},
+        n_particles=30, populations=[{"name": "a"}], seed=seed, version="x",
+    )
+    return data
+
+
+def test_flatten_keeps_scalars_only():
+    flat = flatten(_fake_analysis(3, 0.64))
+    assert flat["solid_fraction.bulk"] == 0.64 and flat["coordination.N"] == 6.0 and flat["seed"] == 3
+    assert math.isnan(flat["coordination.rattler_fraction"])
+    assert "solid_fraction.profile_z" not in flat and "order.director" not in flat and "populations" not in flat
+
+
+def test_finished_runs_and_tables(tmp_path):
+    spec = campaign_from_dict(_tiny_dict())
+    done, stale, failed, missing = spec.runs
+    for run, phi in ((done, 0.62), (stale, 0.64)):
+        folder = tmp_path / run.folder
+        folder.mkdir(parents=True)
+        (folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, phi)))
+        write_task(folder, run)
+    write_task(tmp_path / stale.folder, dataclasses.replace(stale, config={**stale.config, "n_particles": 31}))
+    (tmp_path / failed.folder).mkdir(parents=True)
+    (tmp_path / failed.folder / "error.txt").write_text("Traceback ...\nRuntimeError: solver diverged\n")
+    assert is_finished(tmp_path, done)
+    assert not is_finished(tmp_path, stale)  # made for another config
+    wrong_seed = dataclasses.replace(done, seed=99)
+    assert not is_finished(tmp_path, wrong_seed)
+
+    rows = pd.DataFrame([run_row(tmp_path, r) for r in spec.runs])
+    assert rows["status"].tolist() == ["done", "missing", "failed", "missing"]
+    assert rows.loc[2, "error"] == "RuntimeError: solver diverged"
+    assert rows.loc[0, "solid_fraction.bulk"] == 0.62
+    summary = summary_table(rows)
+    assert summary["mixture"].tolist() == ["mono", "bi-30"]
+    assert summary["n_done"].tolist() == [1, 0] and summary["n_failed"].tolist() == [0, 1]
+    assert summary.loc[0, "solid_fraction.bulk.mean"] == 0.62
+    assert math.isnan(summary.loc[0, "solid_fraction.bulk.std"])  # one replica
+
+
+# ----------------------------------------------------------------------------- end to end
+
+
+def _mtimes(out, runs):
+    return {r.folder: (out / r.folder / "analysis.json").stat().st_mtime_ns for r in runs}
+
+
+def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
+    pytest.importorskip("granpack.simulation", reason="granpack.simulation (run_packing) is not written yet")
+    pytest.importorskip("granpack.analysis.report", reason="granpack.analysis.report (analyze_run) is not written yet")
+    spec_path = tmp_path / "tiny.toml"
+    spec_path.write_text(TINY)
+    spec = load_campaign(spec_path)
+    good = spec.runs
+    bad_config = {**good[0].config, "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 0.5}]}
+    bad = dataclasses.replace(good[0], mixture="bad", config=bad_config)
+    out = tmp_path / "out"
+
+    report = run_campaign(dataclasses.replace(spec, runs=good + (bad,)), out, workers=2)
+    printed = capsys.readouterr().out
+    assert (report.n_runs, report.n_done, report.n_failed, report.n_skipped) == (5, 4, 1, 0)
+    assert "retry   bad/seed-11" in printed and "failed  bad/seed-11" in printed
+    runs = pd.read_csv(out / "runs.csv")
+    assert len(runs) == 5 and len(pd.read_parquet(out / "runs.parquet")) == 5
+    assert runs["status"].tolist() == ["done"] * 4 + ["failed"]
+    assert "volume_fraction" in runs.loc[4, "error"]
+    assert "volume_fraction" in (out / "bad" / "seed-11" / "error.txt").read_text()
+    for column in ("solid_fraction.bulk", "coordination.N", "order.Q00"):
+        assert runs.loc[:3, column].notna().all()
+    assert np.all((runs.loc[:3, "solid_fraction.bulk"] > 0.2) & (runs.loc[:3, "solid_fraction.bulk"] < 0.8))
+    summary = pd.read_csv(out / "summary.csv")
+    assert summary["mixture"].tolist() == ["mono", "bi-30", "bad"]
+    assert summary["n_done"].tolist() == [2, 2, 0]
+    assert np.isfinite(summary.loc[:1, "solid_fraction.bulk.mean"]).all()
+    assert np.isfinite(summary.loc[:1, "solid_fraction.bulk.std"]).all()
+
+    # an interrupted campaign: one run lost its analysis, another its whole simulation output
+    before = _mtimes(out, good)
+    (out / good[1].folder / "analysis.json").unlink()
+    for name in ("analysis.json", "summary.json", "final.gsd"):
+        (out / good[3].folder / name).unlink()
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(spec_path), "--out", str(out), "--workers", "2"])
+    assert info.value.code == 0
+    printed = capsys.readouterr().out
+    assert "done    mono/seed-12 (analysed" in printed and "done    bi-30/seed-12 (" in printed
+    assert "mono/seed-11" not in printed.split("4 runs")[0]  # finished runs are not resubmitted
+    after = _mtimes(out, good)
+    assert after[good[0].folder] == before[good[0].folder] and after[good[2].folder] == before[good[2].folder]
+    assert after[good[1].folder] > before[good[1].folder] and after[good[3].folder] > before[good[3].folder]
+    assert (out / good[3].folder / "final.gsd").is_file()
+    runs = pd.read_csv(out / "runs.csv")
+    assert runs["status"].tolist() == ["done"] * 4
+
+    # nothing left to do: no cluster is started, the tables are rewritten
+    report = run_campaign(spec, out, progress=False)
+    assert (report.n_skipped, report.n_done, report.n_failed) == (4, 4, 0)
