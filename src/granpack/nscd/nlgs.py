@@ -196,7 +196,7 @@ def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_eve
                 wrr += 0.5 * w * (r_new * r_new + r_old * r_old)
                 dvor += rbar * du
         it += 1
-        error = tol * _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
+        error = _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
         if error < tol:
             return it, error, True
     return it, error, False
@@ -302,7 +302,7 @@ def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_e
                 wrr += 0.5 * (wn0 * n0 + wn1 * n1 + wn2 * n2 + wo0 * o0 + wo1 * o1 + wo2 * o2)
                 dvor += b0 * d0 + b1 * d1 + b2 * d2
         it += 1
-        error = tol * _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
+        error = _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
         if error < tol:
             return it, error, True
     return it, error, False

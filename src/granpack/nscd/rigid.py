@@ -115,9 +115,13 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
         _sym_inverse_inertia(rot, inv_j, inv_inertia_w[p])
         w0, w1, w2 = omega[p, 0], omega[p, 1], omega[p, 2]
         l0, l1, l2 = j0 * w0, j1 * w1, j2 * w2
-        f0 = w0 + h * (l1 * w2 - l2 * w1) / j0
-        f1 = w1 + h * (l2 * w0 - l0 * w2) / j1
-        f2 = w2 + h * (l0 * w1 - l1 * w0) / j2
+        m0 = w0 + 0.5 * h * (l1 * w2 - l2 * w1) / j0
+        m1 = w1 + 0.5 * h * (l2 * w0 - l0 * w2) / j1
+        m2 = w2 + 0.5 * h * (l0 * w1 - l1 * w0) / j2
+        n0, n1, n2 = j0 * m0, j1 * m1, j2 * m2
+        f0 = w0 + h * (n1 * m2 - n2 * m1) / j0
+        f1 = w1 + h * (n2 * m0 - n0 * m2) / j1
+        f2 = w2 + h * (n0 * m1 - n1 * m0) / j2
         e_old = l0 * w0 + l1 * w1 + l2 * w2
         e_new = j0 * f0 * f0 + j1 * f1 * f1 + j2 * f2 * f2
         if e_new > 0.0:
