@@ -75,7 +75,18 @@ def run(
 @app.command()
 def analyze(run_dir: Path = typer.Argument(..., help="A run folder holding final.gsd.")) -> None:
     """Analyse a packing: writes RUN_DIR/analysis.json and prints a table."""
-    _not_yet("analyze")
+    from rich.console import Console
+    from rich.table import Table
+
+    from granpack.analysis.report import analyze_run, summary_rows
+
+    result = analyze_run(run_dir)
+    table = Table(title=f"{run_dir / 'analysis.json'}")
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for name, value in summary_rows(result):
+        table.add_row(name, value)
+    Console().print(table)
 
 
 @app.command()

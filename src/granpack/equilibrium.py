@@ -64,6 +64,7 @@ __all__ = [
     "wall_force",
     "equilibrium_fields",
     "check_equilibrium",
+    "report_from_fields",
 ]
 
 
@@ -363,8 +364,13 @@ def check_equilibrium(
         The worst normalised values and the verdicts; ``report.passed`` is the stopping test.
     """
     criteria = criteria or EquilibriumCriteria()
-    fields = equilibrium_fields(state, contacts, time_step, gravity=gravity, criteria=criteria)
-    if state.n:
+    return report_from_fields(equilibrium_fields(state, contacts, time_step, gravity=gravity, criteria=criteria), criteria)
+
+
+def report_from_fields(fields: EquilibriumFields, criteria: EquilibriumCriteria | None = None) -> EquilibriumReport:
+    """The worst values and verdicts of already computed :class:`EquilibriumFields`."""
+    criteria = criteria or EquilibriumCriteria()
+    if len(fields.force_ratio):
         pf, pt = int(np.argmax(fields.force_ratio)), int(np.argmax(fields.torque_ratio))
         max_f, max_t = float(fields.force_ratio[pf]), float(fields.torque_ratio[pt])
         max_e = float(fields.energy_ratio.max())

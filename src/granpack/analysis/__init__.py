@@ -1,0 +1,35 @@
+"""Analysis of a static packing: one module per quantity, each a compute object.
+
+``Quantity(options).compute(packing)`` returns the object; results are read-only properties that
+raise :class:`NotComputedError` before ``compute``; ``.plot(ax)`` draws the standard figure.
+:func:`analyze_packing` / :func:`analyze_run` gather everything into ``analysis.json``.
+"""
+
+from __future__ import annotations
+
+from granpack.analysis._base import AnalysisWarning, NotComputedError
+from granpack.analysis.coordination import Coordination
+from granpack.analysis.equilibrium import Equilibrium
+from granpack.analysis.fit import ExponentialFit
+from granpack.analysis.homogeneity import Homogeneity
+from granpack.analysis.interpenetration import Interpenetration
+from granpack.analysis.order import Order
+from granpack.analysis.pair_correlation import PairCorrelation
+from granpack.analysis.report import AnalysisOptions, analyze_packing, analyze_run
+from granpack.analysis.solid_fraction import SolidFraction
+
+__all__ = [
+    "AnalysisOptions",
+    "AnalysisWarning",
+    "Coordination",
+    "Equilibrium",
+    "ExponentialFit",
+    "Homogeneity",
+    "Interpenetration",
+    "NotComputedError",
+    "Order",
+    "PairCorrelation",
+    "SolidFraction",
+    "analyze_packing",
+    "analyze_run",
+]

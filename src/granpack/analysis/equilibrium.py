@@ -1,0 +1,73 @@
+"""Equilibrium figures of a packing (the criteria themselves live in :mod:`granpack.equilibrium`).
+
+Reports the worst normalised net force :math:`|F_p|/(d_p^2 P_p)`, net torque
+:math:`|T_p|/(d_p^3 P_p)`, kinetic energy :math:`E_p/(d_p^3 \\bar P)` and the wall force over the
+weight, as defined in :mod:`granpack.equilibrium` (PHYSICS.md §5b), over all grains.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from granpack.analysis._base import Compute, result
+from granpack.equilibrium import EquilibriumCriteria, EquilibriumFields, EquilibriumReport, equilibrium_fields, report_from_fields
+from granpack.packing import Packing
+
+__all__ = ["Equilibrium"]
+
+
+class Equilibrium(Compute):
+    """Mechanical equilibrium of a packing.
+
+    Args:
+        criteria: tolerances (defaults of :class:`~granpack.equilibrium.EquilibriumCriteria`).
+    """
+
+    def __init__(self, criteria: EquilibriumCriteria | None = None):
+        self.criteria = criteria or EquilibriumCriteria()
+
+    def compute(self, packing: Packing) -> "Equilibrium":
+        """Evaluate the criteria on ``packing``."""
+        self._start()
+        self._fields = equilibrium_fields(
+            packing.state, packing.contacts, packing.time_step, gravity=packing.gravity, criteria=self.criteria
+        )
+        self._report = report_from_fields(self._fields, self.criteria)
+        self._z = packing.state.position[:, 2].copy()
+        if packing.contacts.n_manifolds == 0:
+            self._warn("no contact: the packing cannot be in equilibrium (normalised figures are inf)")
+        return self._done()
+
+    @result
+    def report(self) -> EquilibriumReport:
+        """The verdicts and worst values."""
+        return self._report
+
+    @result
+    def fields(self) -> EquilibriumFields:
+        """Per-grain forces, torques, energies, pressures and ratios."""
+        return self._fields
+
+    @result
+    def figures(self) -> dict:
+        """``{max_net_force, max_net_torque, kinetic_energy, wall_force_over_weight}`` plus the verdicts."""
+        return self._report.as_dict()
+
+    @result
+    def passed(self) -> bool:
+        """True when all criteria hold."""
+        return self._report.passed
+
+    def plot(self, ax=None):
+        """Normalised net force and torque of every grain against height (log scale); returns the axes."""
+        import matplotlib.pyplot as plt
+
+        ax = ax or plt.gca()
+        tiny = np.finfo(float).tiny
+        ax.semilogx(np.maximum(self._fields.force_ratio, tiny), self._z, ".", ms=2, label="|F| / (d² P)")
+        ax.semilogx(np.maximum(self._fields.torque_ratio, tiny), self._z, ".", ms=2, label="|T| / (d³ P)")
+        ax.axvline(self.criteria.force, color="0.5", lw=0.8)
+        ax.set_xlabel("normalised imbalance")
+        ax.set_ylabel("z / d")
+        ax.legend(loc="best")
+        return ax

@@ -1,0 +1,237 @@
+"""The analysis of one packing as the ``analysis.json`` document (keys are a contract, DESIGN.md).
+
+Top-level keys: ``solid_fraction`` {bulk, std, profile_z, profile_phi, ...}, ``coordination``
+{N, Ns, Nd, Nt, Nc, rattler_fraction, ...}, ``order`` {Q00, Q22, director, ...},
+``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
+wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
+{z, proportions, ...}, ``n_particles``, ``populations``, ``seed``, ``version``; extras:
+``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
+``nan`` here and ``null`` in the file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from granpack.analysis.coordination import Coordination
+from granpack.analysis.equilibrium import Equilibrium
+from granpack.analysis.homogeneity import Homogeneity
+from granpack.analysis.interpenetration import Interpenetration
+from granpack.analysis.order import Order
+from granpack.analysis.pair_correlation import PairCorrelation
+from granpack.analysis.solid_fraction import SolidFraction
+from granpack.equilibrium import EquilibriumCriteria
+from granpack.errors import InputError
+from granpack.io.gsd import read_packing, shape_spec
+from granpack.io.json import write_json
+from granpack.packing import Packing
+
+__all__ = ["AnalysisOptions", "analyze_packing", "analyze_run", "summary_rows"]
+
+
+@dataclass(frozen=True)
+class AnalysisOptions:
+    """Settings of :func:`analyze_packing` (lengths in units of the largest grain size d).
+
+    Attributes:
+        n_bottom: bulk starts ``n_bottom d`` above the wall.
+        n_top: bulk ends ``n_top d`` below the free surface.
+        slice_thickness: solid-fraction profile slices.
+        layer_thickness: homogeneity layers.
+        rdf_bin_width: g(r) bin width.
+        rdf_r_max: largest g(r) distance (capped at half the lateral period).
+        rdf_partials: also compute the partial g_ab(r).
+        force_tol: relative threshold of force-bearing contacts.
+        criteria: equilibrium tolerances.
+    """
+
+    n_bottom: float = 2.0
+    n_top: float = 2.0
+    slice_thickness: float = 0.1
+    layer_thickness: float = 1.0
+    rdf_bin_width: float = 0.02
+    rdf_r_max: float = 4.0
+    rdf_partials: bool = False
+    force_tol: float = 1e-9
+    criteria: EquilibriumCriteria = field(default_factory=EquilibriumCriteria)
+
+
+def _populations(packing: Packing) -> list[dict]:
+    state = packing.state
+    total = state.mass.sum()
+    out = []
+    for a, name in enumerate(packing.population_names):
+        members = state.population == a
+        kinds = np.unique(state.kind[members])
+        out.append(
+            {
+                "name": name,
+                "n": int(members.sum()),
+                "volume_fraction": float(state.mass[members].sum() / total) if total > 0 else math.nan,
+                "shapes": [shape_spec(state.shapes.shapes[k]) for k in kinds],
+            }
+        )
+    return out
+
+
+def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) -> dict:
+    """Every analysis of ``packing`` as a dict (profiles as NumPy arrays, nan for undefined figures).
+
+    :func:`granpack.io.json.write_json` turns it into strict JSON (arrays to lists, nan to null).
+
+    A packing too thin for a bulk region, without contacts, or with a single grain yields
+    warnings (also listed under ``warnings``) and nan bulk figures, never an exception.
+    """
+    from granpack import __version__
+
+    opt = options or AnalysisOptions()
+    box = packing.box
+    messages: list[str] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sf = SolidFraction(opt.slice_thickness, opt.n_bottom, opt.n_top).compute(packing)
+        z_range = (sf.z_bottom, sf.z_top) if sf.has_bulk else (0.0, 0.0)
+        r_max = min(opt.rdf_r_max, 0.5 * min(box.lx, box.ly))
+        bins = max(int(round(r_max / opt.rdf_bin_width)), 1)
+        computed = {
+            "coordination": Coordination(z_range, opt.force_tol).compute(packing),
+            "order": Order(z_range).compute(packing),
+            "pair_correlation": PairCorrelation(bins, r_max, z_range, partials=opt.rdf_partials).compute(packing),
+            "equilibrium": Equilibrium(opt.criteria).compute(packing),
+            "interpenetration": Interpenetration(opt.n_bottom).compute(packing),
+            "homogeneity": Homogeneity(opt.layer_thickness, z_range).compute(packing),
+        }
+    messages += [f"solid_fraction: {m}" for m in sf.warnings]
+    for key, obj in computed.items():
+        messages += [f"{key}: {m}" for m in obj.warnings]
+    for m in messages:
+        warnings.warn(m, stacklevel=2)
+
+    co, order, rdf = computed["coordination"], computed["order"], computed["pair_correlation"]
+    eq, ip, hom = computed["equilibrium"], computed["interpenetration"], computed["homogeneity"]
+    k = ip.expansion_k
+    rdf_out = {
+        "r": rdf.r,
+        "g": rdf.g,
+        "r_over_rmin": rdf.r_over_rmin,
+        "coordination": rdf.coordination,
+        "n_references": rdf.n_references,
+    }
+    if opt.rdf_partials:
+        rdf_out["partial"] = {
+            f"{a}|{b}": rdf.partial[i, j] for i, a in enumerate(packing.population_names) for j, b in enumerate(packing.population_names)
+        }
+    return {
+        "version": __version__,
+        "n_particles": packing.n_particles,
+        "populations": _populations(packing),
+        "seed": packing.seed,
+        "status": packing.metadata.get("status"),
+        "bulk": {
+            "z_bottom": sf.z_bottom,
+            "z_top": sf.z_top,
+            "z_surface": sf.z_surface,
+            "valid": sf.has_bulk,
+            "n_bottom": opt.n_bottom,
+            "n_top": opt.n_top,
+        },
+        "solid_fraction": {
+            "bulk": sf.bulk,
+            "std": sf.std,
+            "profile_z": sf.profile_z,
+            "profile_phi": sf.profile_phi,
+            "layers": sf.layers,
+            "plateau": sf.plateau,
+            "corrected_for_overlap": sf.bulk / (1.0 + k) if math.isfinite(k) else math.nan,
+        },
+        "coordination": {
+            **co.figures,
+            "rattler_fraction": co.rattler_fraction,
+            "with_rattlers": co.with_rattlers,
+            "n_analysed": co.n_analysed,
+            "force_tol": opt.force_tol,
+        },
+        "order": {
+            "Q00": order.Q00,
+            "Q22": order.Q22,
+            "director": order.director,
+            "director_axis": order.director_axis,
+            "n_analysed": order.n_analysed,
+            "isotropic_baseline": order.baseline,
+            "Q22_convention": "tensor form with prefactor 1/3, max over the in-plane frame (perfect order = 1)",
+        },
+        "pair_correlation": rdf_out,
+        "equilibrium": eq.figures,
+        "interpenetration": {
+            "max": ip.max,
+            "mean": ip.mean,
+            "expansion_k": k,
+            "k": ip.k,
+            "fraction_overlapping": ip.fraction,
+            "fraction_deep": ip.fraction_deep,
+            "phi_relative_overestimate": k,
+        },
+        "homogeneity": {
+            "z": hom.z,
+            "proportions": hom.proportions,
+            "nominal": hom.nominal,
+            "bulk_mean": hom.bulk_mean,
+            "bulk_std": hom.bulk_std,
+            "segregated_layers": {name: int((flags & hom.bulk_layers).sum()) for name, flags in hom.segregated.items()},
+        },
+        "warnings": messages,
+    }
+
+
+def analyze_run(run_dir: str | os.PathLike, options: AnalysisOptions | None = None) -> dict:
+    """Analyse ``run_dir/final.gsd`` and write ``run_dir/analysis.json`` atomically.
+
+    Raises:
+        InputError: ``run_dir`` is not a folder, or ``final.gsd`` is missing or unreadable.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise InputError(f"{run_dir}: not a run folder")
+    result = analyze_packing(read_packing(run_dir / "final.gsd"), options)
+    write_json(run_dir / "analysis.json", result)
+    return result
+
+
+def summary_rows(result: dict) -> list[tuple[str, str]]:
+    """Headline figures of an :func:`analyze_packing` result as ``(label, formatted value)`` rows."""
+
+    def fmt(value, spec: str = ".4f") -> str:
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
+            return "n/a"
+        return format(value, spec)
+
+    sf, co, order = result["solid_fraction"], result["coordination"], result["order"]
+    eq, ip = result["equilibrium"], result["interpenetration"]
+    rows = [
+        ("grains", str(result["n_particles"])),
+        ("bulk region z/d", f"{fmt(result['bulk']['z_bottom'], '.2f')} .. {fmt(result['bulk']['z_top'], '.2f')}"),
+        ("solid fraction (bulk)", f"{fmt(sf['bulk'])} ± {fmt(sf['std'])}"),
+        ("N / Nc (backbone)", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
+        ("Ns / Nd / Nt", f"{fmt(co['Ns'], '.3f')} / {fmt(co['Nd'], '.3f')} / {fmt(co['Nt'], '.3f')}"),
+        ("rattler fraction", fmt(co["rattler_fraction"], ".3f")),
+        ("Q00 / Q22", f"{fmt(order['Q00'])} / {fmt(order['Q22'])} (axis {order['director_axis'] or '-'})"),
+        (
+            "isotropic baseline Q00 / Q22",
+            f"{fmt(order['isotropic_baseline']['Q00'])} / {fmt(order['isotropic_baseline']['Q22'])}",
+        ),
+        ("max |F|/(d²P), |T|/(d³P)", f"{fmt(eq['max_net_force'], '.2e')}, {fmt(eq['max_net_torque'], '.2e')}"),
+        ("max E/(d³P)", fmt(eq["kinetic_energy"], ".2e")),
+        ("wall force / weight", fmt(eq["wall_force_over_weight"], ".6f")),
+        ("equilibrium", "yes" if eq["passed"] else "no"),
+        ("overlap max / mean (d)", f"{fmt(ip['max'], '.2e')} / {fmt(ip['mean'], '.2e')}"),
+        ("expansion k", fmt(ip["expansion_k"], ".2e")),
+    ]
+    for name, share in result["homogeneity"]["bulk_mean"].items():
+        rows.append((f"volume share {name} (bulk)", fmt(share, ".3f")))
+    return rows
