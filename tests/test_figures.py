@@ -13,7 +13,7 @@ from matplotlib.image import imread
 from granpack.box import Box
 from granpack.contact.contacts import ContactSet
 from granpack.errors import InputError
-from granpack.figures import campaign_figures, fit_coordination_order, make_figures, render_packing, save_figure
+from granpack.figures import campaign_figures, make_figures, render_packing, save_figure
 from granpack.packing import Packing
 from granpack.rotations import random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere
@@ -42,7 +42,12 @@ def _analysis(rng, share: float, seed: int, order: float) -> dict:
         "pair_correlation": {"r": r.tolist(), "g": (1.0 + np.exp(-r) * np.cos(6 * r)).tolist()},
         "equilibrium": {"max_net_force": 1e-5, "max_net_torque": 1e-5, "kinetic_energy": 1e-10, "wall_force_over_weight": 1.0},
         "interpenetration": {"max": 1e-3, "mean": 1e-4, "expansion_k": 1.001},
-        "homogeneity": {"z": z.tolist(), "proportions": {"large": (1 - share + 0 * z).tolist(), "small": (share + 0 * z).tolist()}},
+        "homogeneity": {
+            "z": z.tolist(),
+            "proportions": {"large": (1 - share + 0 * z).tolist(), "small": (share + 0 * z).tolist()},
+            "nominal": {"large": 1 - share, "small": share},
+        },
+        "bulk": {"z_bottom": 2.0, "z_top": 6.0, "valid": True},
         "n_particles": 100,
         "populations": [{"name": "large"}, {"name": "small"}],
         "seed": seed,
@@ -107,18 +112,6 @@ def test_figures_bad_folders(tmp_path):
         make_figures(tmp_path / "absent")
     with pytest.raises(InputError, match="neither a campaign folder"):
         make_figures(tmp_path)
-
-
-def test_fit_recovers_exponential_law(rng):
-    q = np.linspace(0.0, 0.8, 25)
-    n = 4.2 + (6.8 - 4.2) * (1 - np.exp(-q / 0.15)) + 0.01 * rng.standard_normal(len(q))
-    fit = fit_coordination_order(q, n)
-    assert fit["N0"] == pytest.approx(4.2, abs=0.05)
-    assert fit["N1"] == pytest.approx(6.8, abs=0.05)
-    assert fit["Qc"] == pytest.approx(0.15, abs=0.02)
-    assert fit["rms"] < 0.02
-    with pytest.raises(ValueError, match="at least 4"):
-        fit_coordination_order([0.1, 0.2, 0.3], [4, 5, 6])
 
 
 def _mixed_packing(rng) -> Packing:

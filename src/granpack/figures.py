@@ -18,7 +18,7 @@ For a **campaign folder** (``runs.csv`` and the run folders), :func:`campaign_fi
   start from the monodisperse isometric pinacoids (family ``pinacoids``, share 0);
 - ``coordination``: N, Ns, Nd, Nt against the share, one panel per family;
 - ``coordination_vs_order``: N against Q00 for every non-spherical run, with the fit
-  ``N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc))`` (PHYSICS.md §5g);
+  ``N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc))`` of :mod:`granpack.analysis.fit` (PHYSICS.md §5g);
 - ``pair_correlation`` and ``homogeneity``: g(r) and the volume proportion profiles of the
   chosen mixtures (default: all), one panel per family.
 
@@ -30,8 +30,9 @@ from __future__ import annotations
 import json
 import math
 import os
+import warnings
 from pathlib import Path
-from typing import Iterable, Sequence
+from typing import TYPE_CHECKING, Iterable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -40,18 +41,19 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
-from scipy.optimize import curve_fit
 
 from granpack.errors import InputError
 from granpack.io.vtk import grain_surfaces
 from granpack.packing import Packing
+
+if TYPE_CHECKING:
+    from granpack.analysis.fit import ExponentialFit
 
 __all__ = [
     "FAMILIES",
     "FORMATS",
     "save_figure",
     "render_packing",
-    "fit_coordination_order",
     "run_figures",
     "campaign_figures",
     "make_figures",
@@ -211,18 +213,17 @@ def _population_names(analysis: dict) -> list[str]:
     return names
 
 
-def _homogeneity(analysis: dict) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """Layer heights and the volume proportion profile of each population from an analysis."""
+def _homogeneity(analysis: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, float]]:
+    """Layer heights, the volume proportion profile of each population, and the nominal
+    proportions (``homogeneity`` {z, proportions, nominal} of an analysis)."""
     data = analysis.get("homogeneity") or {}
     z = _array(data.get("z"))
-    proportions = data.get("proportions")
-    if isinstance(proportions, list):
-        names = _population_names(analysis)
-        proportions = {names[k] if k < len(names) else f"population {k}": p for k, p in enumerate(proportions)}
+    proportions, nominal = data.get("proportions"), data.get("nominal")
     if not isinstance(proportions, dict):
-        return z, {}
+        return z, {}, {}
     profiles = {str(name): _array(p) for name, p in proportions.items()}
-    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and len(z)}
+    nominal = {str(k): float(v) for k, v in nominal.items() if isinstance(v, (int, float))} if isinstance(nominal, dict) else {}
+    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and len(z)}, nominal
 
 
 def _plot_profile(ax: Axes, analysis: dict) -> bool:
@@ -231,6 +232,9 @@ def _plot_profile(ax: Axes, analysis: dict) -> bool:
     if not len(z) or len(z) != len(phi):
         return False
     ax.plot(phi, z, color="C0", label="slice average")
+    bulk_region = analysis.get("bulk") or {}
+    if bulk_region.get("valid") and all(isinstance(bulk_region.get(k), (int, float)) for k in ("z_bottom", "z_top")):
+        ax.axhspan(bulk_region["z_bottom"], bulk_region["z_top"], color="0.9", zorder=0, label="bulk region")
     bulk, std = sf.get("bulk"), sf.get("std")
     if isinstance(bulk, (int, float)) and math.isfinite(bulk):
         label = f"bulk {bulk:.4f}" + (f" ± {std:.4f}" if isinstance(std, (int, float)) else "")
@@ -279,12 +283,14 @@ def run_figures(run_dir: str | Path) -> list[Path]:
         ax.legend()
         written += save_figure(fig, out, "pair_correlation")
 
-    z, profiles = _homogeneity(analysis)
+    z, profiles, nominal = _homogeneity(analysis)
     if profiles:
         fig = Figure(figsize=(4.5, 6))
         ax = fig.add_subplot()
-        for name, p in profiles.items():
-            ax.plot(p, z, marker=".", label=name)
+        for k, (name, p) in enumerate(profiles.items()):
+            ax.plot(p, z, marker=".", color=f"C{k}", label=name)
+            if name in nominal:
+                ax.axvline(nominal[name], color=f"C{k}", linewidth=0.8, linestyle=":")
         ax.set_xlabel("proportion of the solid volume")
         ax.set_ylabel("height z (d)")
         ax.set_xlim(-0.02, 1.02)
@@ -393,47 +399,15 @@ def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
     return fig
 
 
-def _exponential(q: np.ndarray, n0: float, n1: float, qc: float) -> np.ndarray:
-    return n0 + (n1 - n0) * (1.0 - np.exp(-q / qc))
+def _fit(q: np.ndarray, n: np.ndarray) -> ExponentialFit:
+    """The fit N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc)) of :mod:`granpack.analysis.fit` (nan
+    parameters, without a warning, when it cannot be made)."""
+    from granpack.analysis._base import AnalysisWarning
+    from granpack.analysis.fit import ExponentialFit
 
-
-def fit_coordination_order(q: Sequence[float], n: Sequence[float]) -> dict[str, float]:
-    """Least-squares fit of N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc)) (PHYSICS.md §5g).
-
-    Bounds N0, N1 > 0, Qc > 0; initial guess N0 = N at the smallest Q, N1 = largest N, Qc = 0.2.
-
-    Args:
-        q: nematic order Q00 of each packing.
-        n: coordination number N of each packing.
-
-    Returns:
-        ``{"N0", "N1", "Qc", "N0_err", "N1_err", "Qc_err", "rms"}`` (errors: square roots of the
-        covariance diagonal; rms: root mean square residual).
-
-    Raises:
-        ValueError: fewer than 4 finite points, or the fit does not converge.
-    """
-    q, n = np.asarray(q, dtype=float), np.asarray(n, dtype=float)
-    ok = np.isfinite(q) & np.isfinite(n)
-    q, n = q[ok], n[ok]
-    if len(q) < 4:
-        raise ValueError(f"the fit needs at least 4 packings with finite Q00 and N (got {len(q)})")
-    guess = (max(n[np.argmin(q)], 1e-6), max(n.max(), 2e-6), 0.2)
-    try:
-        params, cov = curve_fit(_exponential, q, n, p0=guess, bounds=((0.0, 0.0, 1e-6), (np.inf, np.inf, np.inf)))
-    except RuntimeError as exc:
-        raise ValueError(f"the fit did not converge ({exc})") from None
-    errors = np.sqrt(np.abs(np.diag(cov)))
-    rms = float(np.sqrt(np.mean((_exponential(q, *params) - n) ** 2)))
-    return {
-        "N0": float(params[0]),
-        "N1": float(params[1]),
-        "Qc": float(params[2]),
-        "N0_err": float(errors[0]),
-        "N1_err": float(errors[1]),
-        "Qc_err": float(errors[2]),
-        "rms": rms,
-    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AnalysisWarning)
+        return ExponentialFit().compute(q, n)
 
 
 def _coordination_vs_order(runs: pd.DataFrame) -> Figure | None:
@@ -448,17 +422,15 @@ def _coordination_vs_order(runs: pd.DataFrame) -> Figure | None:
     for family in _families(grains):
         rows = grains[grains["family"] == family]
         ax.plot(rows["order.Q00"], rows["coordination.N"], linestyle="none", marker=_marker(family), label=_label(family))
-    try:
-        fit = fit_coordination_order(grains["order.Q00"], grains["coordination.N"])
-    except ValueError:
-        fit = None
-    if fit is not None:
+    fit = _fit(grains["order.Q00"].to_numpy(), grains["coordination.N"].to_numpy())
+    if math.isfinite(fit.N0):
         q = np.linspace(0.0, float(grains["order.Q00"].max()) * 1.05, 200)
+        err = fit.stderr
         label = (
-            f"fit N0 = {fit['N0']:.2f} ± {fit['N0_err']:.2f}, N1 = {fit['N1']:.2f} ± {fit['N1_err']:.2f},\n"
-            f"Qc = {fit['Qc']:.3f} ± {fit['Qc_err']:.3f} (rms {fit['rms']:.3f})"
+            f"fit N0 = {fit.N0:.2f} ± {err['N0']:.2f}, N1 = {fit.N1:.2f} ± {err['N1']:.2f},\n"
+            f"Qc = {fit.Qc:.3f} ± {err['Qc']:.3f} (rms {fit.rms:.3f})"
         )
-        ax.plot(q, _exponential(q, fit["N0"], fit["N1"], fit["Qc"]), color="k", label=label)
+        ax.plot(q, fit.predict(q), color="k", label=label)
     ax.set_xlabel("nematic order $Q^2_{00}$")
     ax.set_ylabel("coordination number N (bulk)")
     ax.legend(fontsize="small")
@@ -523,8 +495,8 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
     mixture's first replica, one panel per family; dotted: the nominal share."""
     curves: dict[str, list] = {}
     for (family, mixture, share), rows in runs.groupby(["family", "mixture", "share"], sort=False, dropna=False):
-        z, profiles = _homogeneity(_read_analysis(campaign_dir / rows["path"].iloc[0]))
-        substituted = list(profiles.items())[1:]
+        z, profiles, nominal = _homogeneity(_read_analysis(campaign_dir / rows["path"].iloc[0]))
+        substituted = [(name, p, nominal.get(name, math.nan)) for name, p in list(profiles.items())[1:]]
         if substituted:
             curves.setdefault(family, []).append((mixture, share, z, substituted))
     if not curves:
@@ -534,15 +506,15 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
     for ax, family in zip(axes, families):
         for mixture, share, z, substituted in curves[family]:
             colour = _share_colour(share)
-            for k, (name, p) in enumerate(substituted):
+            for k, (name, p, expected) in enumerate(substituted):
                 ax.plot(p, z, color=colour, linestyle=("-", "--", "-.")[k % 3], label=f"{mixture}: {name}")
-            if len(substituted) == 1 and math.isfinite(share):
-                ax.axvline(share, color=colour, linewidth=0.6, linestyle=":")
+                if math.isfinite(expected):
+                    ax.axvline(expected, color=colour, linewidth=0.6, linestyle=":")
         ax.set_xlabel("proportion of the solid volume")
         ax.set_xlim(-0.02, 1.02)
         ax.legend(fontsize="x-small")
     axes[0].set_ylabel("height z (d)")
-    fig.suptitle("Homogeneity: volume proportion of the substituted grains per layer")
+    fig.suptitle("Homogeneity: volume proportion of the substituted grains per layer (dotted: nominal)")
     return fig
 
 

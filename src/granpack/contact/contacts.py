@@ -15,11 +15,14 @@ Conventions (owned here):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ContactSet", "SIMPLE", "DOUBLE", "TRIPLE", "WALL"]
+from granpack._numba import jit
+
+__all__ = ["ContactSet", "SIMPLE", "DOUBLE", "TRIPLE", "WALL", "contact_types", "manifold_type_nb"]
 
 SIMPLE, DOUBLE, TRIPLE = 1, 2, 3
 WALL = -1
@@ -78,3 +81,96 @@ class ContactSet:
     def point_manifold(self) -> np.ndarray:
         """``(P,)`` manifold index of every point."""
         return np.repeat(np.arange(self.n_manifolds), np.diff(self.point_start))
+
+
+@jit
+def manifold_type_nb(points, count, nx, ny, nz, eps):
+    """Numba: contact type of one manifold from the rank of its points (PHYSICS.md §3.5).
+
+    The points ``points[:count]`` are projected on a tangent basis ``(t, s)`` of the normal ``n``
+    and centred; with :math:`\\sigma_1 \\ge \\sigma_2` the singular values of the ``2 x K``
+    matrix of in-plane coordinates, the type is 1 (simple) if :math:`\\sigma_1 < \\epsilon`,
+    2 (double) if :math:`\\sigma_2 < \\epsilon`, else 3 (triple).
+
+    Args:
+        points: ``(>= count, 3)`` point coordinates (any origin), d.
+        count: number of points.
+        nx, ny, nz: unit normal.
+        eps: tolerance :math:`\\epsilon_f`, d.
+    """
+    if count < 2:
+        return SIMPLE
+    # tangent basis (any orthonormal pair is fine: singular values are rotation invariant)
+    if abs(nx) <= abs(ny) and abs(nx) <= abs(nz):
+        tx, ty, tz = 0.0, nz, -ny
+    elif abs(ny) <= abs(nz):
+        tx, ty, tz = -nz, 0.0, nx
+    else:
+        tx, ty, tz = ny, -nx, 0.0
+    tn = math.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / tn, ty / tn, tz / tn
+    sx, sy, sz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+    mu = 0.0
+    mw = 0.0
+    for k in range(count):
+        mu += points[k, 0] * tx + points[k, 1] * ty + points[k, 2] * tz
+        mw += points[k, 0] * sx + points[k, 1] * sy + points[k, 2] * sz
+    mu /= count
+    mw /= count
+    cuu = 0.0
+    cww = 0.0
+    cuw = 0.0
+    for k in range(count):
+        u = points[k, 0] * tx + points[k, 1] * ty + points[k, 2] * tz - mu
+        w = points[k, 0] * sx + points[k, 1] * sy + points[k, 2] * sz - mw
+        cuu += u * u
+        cww += w * w
+        cuw += u * w
+    half = 0.5 * (cuu + cww)
+    root = math.sqrt(max(0.0, 0.25 * (cuu - cww) ** 2 + cuw * cuw))
+    s1 = math.sqrt(max(0.0, half + root))
+    s2 = math.sqrt(max(0.0, half - root))
+    if s1 < eps:
+        return SIMPLE
+    if s2 < eps:
+        return DOUBLE
+    return TRIPLE
+
+
+@jit
+def _types_kernel(point_start, point, normal, mask, eps):
+    m = len(point_start) - 1
+    out = np.zeros(m, np.int64)
+    buf = np.empty((point.shape[0] if point.shape[0] > 0 else 1, 3))
+    for c in range(m):
+        cnt = 0
+        for k in range(point_start[c], point_start[c + 1]):
+            if mask[k]:
+                buf[cnt, 0], buf[cnt, 1], buf[cnt, 2] = point[k, 0], point[k, 1], point[k, 2]
+                cnt += 1
+        if cnt > 0:
+            out[c] = manifold_type_nb(buf, cnt, normal[c, 0], normal[c, 1], normal[c, 2], eps)
+    return out
+
+
+def contact_types(contacts: ContactSet, eps: float, mask: np.ndarray | None = None) -> np.ndarray:
+    """Contact type of every manifold from the rank of a subset of its points (PHYSICS.md §3.5).
+
+    Detection already sets ``ctype`` from all the points within the alert distance; analysis uses
+    this to re-classify from the points that matter for a static packing, e.g.
+    ``mask = contacts.gap <= g_tol`` (geometric) or force-bearing points (mechanical).
+
+    Args:
+        contacts: the manifolds.
+        eps: rank tolerance :math:`\\epsilon_f`, d (PHYSICS.md §3.4: 1e-3 d_min).
+        mask: ``(P,)`` bool, the points to use (default: all).
+
+    Returns:
+        ``(M,)`` int64 types 1/2/3, or 0 for a manifold with no selected point.
+    """
+    if mask is None:
+        mask = np.ones(contacts.n_points, dtype=bool)
+    mask = np.ascontiguousarray(mask, dtype=np.bool_)
+    if mask.shape != (contacts.n_points,):
+        raise ValueError(f"mask must have one entry per point ({contacts.n_points}), got shape {mask.shape}")
+    return _types_kernel(contacts.point_start, contacts.point, contacts.normal, mask, float(eps))

@@ -1,0 +1,219 @@
+"""Broad phase: candidate pairs from a cell grid in the bi-periodic box, with a Verlet skin.
+
+Every grain is bounded by its circumscribed sphere (radius ``R``, centred on the centre of mass,
+so orientation does not matter). A pair ``(i, j)`` is a candidate when, for the nearest periodic
+image ``x_j + shift`` (``shift = (kx lx, ky ly, 0)``),
+
+.. math:: |x_i - x_j - \\mathrm{shift}| < R_i + R_j + \\mathrm{cutoff},
+
+with ``cutoff`` = alert distance + skin. Because the box satisfies
+``lx, ly > 2 (d_max + alert)`` (PHYSICS.md §2.10), a pair interacts through one image at most,
+which is the minimum image; the shift is therefore not stored and is recomputed from the current
+positions by the narrow phase (it changes when a grain is wrapped across the boundary).
+
+Grid: cells of side about ``2 R_min + cutoff`` (at least a quarter of ``2 R_max + cutoff``) in x,
+y (periodic, ``nx = floor(lx / c)`` columns) and z (non-periodic, from the lowest to the highest
+centre). Grain i searches the cells within ``2 R_i + cutoff`` and keeps the grains j that are not
+larger than itself (``R_j < R_i``, or ``R_j = R_i`` and ``j > i``), so every pair is found exactly
+once, from its larger member, and small grains of a bidisperse mix (size ratio 3 and more) only
+scan a small neighbourhood. A neighbourhood wider than the box (one or two columns) visits each
+column once, so no pair is counted twice in small boxes.
+
+Verlet reuse: pairs found with a skin stay valid while every grain has moved less than half the
+skin since the list was built (displacements by minimum image).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from granpack._numba import jit
+
+__all__ = ["candidate_pairs", "max_displacement", "VerletList"]
+
+
+@jit
+def _cell_index(x, period, n, width):
+    """Column of coordinate ``x`` in a periodic direction of ``n`` columns of ``width``."""
+    xw = x - period * math.floor(x / period)
+    c = int(xw / width)
+    if c >= n:
+        c = n - 1
+    if c < 0:
+        c = 0
+    return c
+
+
+@jit
+def candidate_pairs(position, radius, lx, ly, cutoff):
+    """All pairs whose bounding spheres are closer than ``cutoff`` (nearest periodic image).
+
+    Args:
+        position: ``(N, 3)`` centres, d (x, y need not be wrapped).
+        radius: ``(N,)`` circumscribed radii, d.
+        lx, ly: periods, d; must exceed ``2 (2 max(radius) + cutoff)``.
+        cutoff: extra distance (alert + skin), d.
+
+    Returns:
+        ``(pair_start, pair_j)``: CSR over ``i`` (``(N+1,)``) of the partners ``j > i``, each row
+        sorted, so the pair list is in lexicographic order.
+    """
+    n = position.shape[0]
+    if n == 0:
+        return np.zeros(1, np.int64), np.zeros(0, np.int64)
+    rmin = radius.min()
+    rmax = radius.max()
+    cell = max(2.0 * rmin + cutoff, 0.25 * (2.0 * rmax + cutoff))
+    nx = max(1, int(lx / cell))
+    ny = max(1, int(ly / cell))
+    wx = lx / nx
+    wy = ly / ny
+    zmin = position[:, 2].min()
+    zmax = position[:, 2].max()
+    nz = int((zmax - zmin) / cell) + 1
+    cx = np.empty(n, np.int64)
+    cy = np.empty(n, np.int64)
+    cz = np.empty(n, np.int64)
+    counts = np.zeros(nx * ny * nz + 1, np.int64)
+    for p in range(n):
+        cx[p] = _cell_index(position[p, 0], lx, nx, wx)
+        cy[p] = _cell_index(position[p, 1], ly, ny, wy)
+        cz[p] = min(nz - 1, int((position[p, 2] - zmin) / cell))
+        counts[(cz[p] * ny + cy[p]) * nx + cx[p] + 1] += 1
+    cell_start = np.cumsum(counts)
+    fill = cell_start[:-1].copy()
+    members = np.empty(n, np.int64)
+    for p in range(n):
+        c = (cz[p] * ny + cy[p]) * nx + cx[p]
+        members[fill[c]] = p
+        fill[c] += 1
+
+    cap = 16 * n
+    lo = np.empty(cap, np.int64)
+    hi = np.empty(cap, np.int64)
+    m = 0
+    colx = np.empty(nx, np.int64)
+    coly = np.empty(ny, np.int64)
+    for i in range(n):
+        ri = radius[i]
+        reach = 2.0 * ri + cutoff
+        kx = int(math.ceil(reach / wx))
+        ky = int(math.ceil(reach / wy))
+        kz = int(math.ceil(reach / cell))
+        if 2 * kx + 1 >= nx:
+            ncx = nx
+            for c in range(nx):
+                colx[c] = c
+        else:
+            ncx = 2 * kx + 1
+            for c in range(ncx):
+                colx[c] = (cx[i] - kx + c) % nx
+        if 2 * ky + 1 >= ny:
+            ncy = ny
+            for c in range(ny):
+                coly[c] = c
+        else:
+            ncy = 2 * ky + 1
+            for c in range(ncy):
+                coly[c] = (cy[i] - ky + c) % ny
+        z0 = max(0, cz[i] - kz)
+        z1 = min(nz - 1, cz[i] + kz)
+        xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
+        for iz in range(z0, z1 + 1):
+            for a in range(ncy):
+                for b in range(ncx):
+                    c = (iz * ny + coly[a]) * nx + colx[b]
+                    for q in range(cell_start[c], cell_start[c + 1]):
+                        j = members[q]
+                        rj = radius[j]
+                        if rj > ri or (rj == ri and j <= i):
+                            continue
+                        dx = xi - position[j, 0]
+                        dy = yi - position[j, 1]
+                        dx -= lx * math.floor(dx / lx + 0.5)
+                        dy -= ly * math.floor(dy / ly + 0.5)
+                        dz = zi - position[j, 2]
+                        rr = ri + rj + cutoff
+                        if dx * dx + dy * dy + dz * dz < rr * rr:
+                            if m == cap:
+                                cap *= 2
+                                lo2 = np.empty(cap, np.int64)
+                                hi2 = np.empty(cap, np.int64)
+                                lo2[:m] = lo[:m]
+                                hi2[:m] = hi[:m]
+                                lo, hi = lo2, hi2
+                            lo[m] = min(i, j)
+                            hi[m] = max(i, j)
+                            m += 1
+    pair_start = np.zeros(n + 1, np.int64)
+    for k in range(m):
+        pair_start[lo[k] + 1] += 1
+    pair_start = np.cumsum(pair_start)
+    fill = pair_start[:-1].copy()
+    pair_j = np.empty(m, np.int64)
+    for k in range(m):
+        pair_j[fill[lo[k]]] = hi[k]
+        fill[lo[k]] += 1
+    for i in range(n):
+        pair_j[pair_start[i]:pair_start[i + 1]] = np.sort(pair_j[pair_start[i]:pair_start[i + 1]])
+    return pair_start, pair_j
+
+
+@jit
+def max_displacement(position, reference, lx, ly):
+    """Largest displacement of a grain between ``reference`` and ``position`` (minimum image), d."""
+    best = 0.0
+    for p in range(position.shape[0]):
+        dx = position[p, 0] - reference[p, 0]
+        dy = position[p, 1] - reference[p, 1]
+        dx -= lx * math.floor(dx / lx + 0.5)
+        dy -= ly * math.floor(dy / ly + 0.5)
+        dz = position[p, 2] - reference[p, 2]
+        best = max(best, dx * dx + dy * dy + dz * dz)
+    return math.sqrt(best)
+
+
+class VerletList:
+    """Candidate pairs kept between steps while no grain has moved more than half the skin.
+
+    Args:
+        skin: extra search distance beyond the alert distance, d (0 rebuilds every call).
+
+    Attributes:
+        pair_start, pair_j: the current CSR pair list (``j > i``, lexicographic order).
+        n_builds: number of grid searches done so far.
+    """
+
+    def __init__(self, skin: float = 0.0):
+        if not skin >= 0.0:
+            raise ValueError(f"skin must be >= 0, got {skin}")
+        self.skin = float(skin)
+        self.pair_start = np.zeros(1, np.int64)
+        self.pair_j = np.zeros(0, np.int64)
+        self.n_builds = 0
+        self._reference: np.ndarray | None = None
+        self._key: tuple | None = None
+
+    def update(self, position: np.ndarray, radius: np.ndarray, lx: float, ly: float, alert: float) -> bool:
+        """Rebuild the list if needed for these positions; returns True if it was rebuilt.
+
+        Args:
+            position: ``(N, 3)`` centres, d.
+            radius: ``(N,)`` circumscribed radii, d.
+            lx, ly: periods, d.
+            alert: alert distance, d.
+        """
+        key = (len(position), float(lx), float(ly), float(alert), radius.tobytes())
+        if (
+            self._reference is None
+            or key != self._key
+            or 2.0 * max_displacement(position, self._reference, lx, ly) > self.skin
+        ):
+            self.pair_start, self.pair_j = candidate_pairs(position, radius, lx, ly, alert + self.skin)
+            self._reference = position.copy()
+            self._key = key
+            self.n_builds += 1
+            return True
+        return False

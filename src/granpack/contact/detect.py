@@ -1,0 +1,173 @@
+"""Contact detection: broad phase + narrow phase -> :class:`~granpack.contact.contacts.ContactSet`.
+
+API:
+
+- ``detect(state, alert, previous=None) -> ContactSet``: one-shot detection (the grid search is
+  done every call).
+- ``Detector(skin=..., eps_f=None)``: the same with state kept between steps; ``skin > 0`` keeps
+  the broad-phase pair list (Verlet list) while no grain has moved more than ``skin / 2``.
+  ``Detector.detect(state, alert, previous=None)`` has the signature of :func:`detect`; the
+  counters ``n_candidates`` (pairs in the list), ``n_tested`` (pairs whose bounding spheres are
+  within ``alert``, i.e. narrow-phase tests) and ``n_builds`` describe the last call.
+
+Every pair with a gap (exact distance, or negative penetration depth) of at most ``alert`` gives
+one manifold: bodies ``i < j`` (``j = -1`` for the bottom wall), the image shift of ``j``, the
+normal from ``j`` to ``i``, one to four points with their gaps, and the contact type 1/2/3 from
+the rank of the points (PHYSICS.md §3.5). Manifolds are ordered by ``i``, then ``j`` with the
+wall first, independently of the Verlet state, so results do not depend on the skin.
+
+``previous`` (the manifolds of the previous step, e.g. the solver's last ``ContactSet``) gives
+temporal hysteresis between polyhedra: a pair keeps the separating axis family (face of ``j``,
+face of ``i``, edge-edge) whose axis is closest to its previous normal while that axis is within
+``eps_f`` of the best separation, so contact points and types do not flip between equivalent
+axes from one step to the next.
+
+Conventions: lengths in d; ``alert`` is the largest gap reported (PHYSICS.md §2.11: at least
+twice the largest displacement per step); the box must satisfy ``lx, ly > 2 (d_max + alert)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from granpack.contact.broadphase import VerletList
+from granpack.contact.contacts import ContactSet
+from granpack.contact.narrowphase import narrow_phase, world_geometry
+from granpack.shapes import ShapeTable
+from granpack.state import ParticleState
+
+__all__ = ["Detector", "detect"]
+
+
+def _edge_direction_index(shapes: ShapeTable) -> np.ndarray:
+    """``(NE,)`` local index, in its kind's ``edge_directions``, of every edge's direction."""
+    out = np.zeros(len(shapes.edges), dtype=np.int64)
+    for k in range(shapes.n_kinds):
+        v = shapes.vertices[shapes.vertex_start[k]:shapes.vertex_start[k + 1]]
+        dirs = shapes.edge_directions[shapes.direction_start[k]:shapes.direction_start[k + 1]]
+        for e in range(shapes.edge_start[k], shapes.edge_start[k + 1]):
+            a, b = shapes.edges[e]
+            u = v[b] - v[a]
+            u = u / np.linalg.norm(u)
+            out[e] = int(np.argmax(np.abs(dirs @ u)))
+    return out
+
+
+class _Tables:
+    """Kernel tables derived once per :class:`ShapeTable`."""
+
+    def __init__(self, shapes: ShapeTable):
+        self.shapes = shapes
+        face_sizes = np.diff(shapes.face_vertex_start)
+        vert_counts = np.diff(shapes.vertex_start)
+        max_face = int(face_sizes.max()) if len(face_sizes) else 0
+        self.max_points = max(2 * max_face + 2, int(vert_counts.max()) if len(vert_counts) else 0, 4)
+        self.edge_dir = _edge_direction_index(shapes)
+        self.d_min = 2.0 * float(shapes.radius.min())
+        self.d_max = 2.0 * float(shapes.radius.max())
+
+    def tab(self, kind: np.ndarray) -> tuple:
+        s = self.shapes
+        return (s.vertex_start, s.face_start, s.face_offsets, s.face_vertex_start, s.face_vertices, s.edge_start,
+                s.edges, self.edge_dir, kind)
+
+
+class Detector:
+    """Contact detection with a broad-phase pair list kept between calls.
+
+    Args:
+        skin: Verlet skin, d; 0 (default) searches the grid at every call. A skin pays when
+            grains move little per step (settling, static packings); see benchmarks/README.md.
+        eps_f: feature band, rank tolerance and axis hysteresis, d; default ``1e-3 d_min``
+            (PHYSICS.md §3.4) with ``d_min`` the smallest grain size of the shape table.
+
+    Attributes:
+        n_candidates: candidate pairs in the list at the last call.
+        n_tested: pairs whose bounding spheres were within ``alert`` at the last call.
+        n_builds: grid searches done so far.
+    """
+
+    def __init__(self, skin: float = 0.0, eps_f: float | None = None):
+        self.verlet = VerletList(skin)
+        if eps_f is not None and not eps_f > 0:
+            raise ValueError(f"eps_f must be > 0, got {eps_f}")
+        self.eps_f = eps_f
+        self._tables: _Tables | None = None
+        self.n_candidates = 0
+        self.n_tested = 0
+
+    @property
+    def n_builds(self) -> int:
+        return self.verlet.n_builds
+
+    def detect(self, state: ParticleState, alert: float, previous: ContactSet | None = None) -> ContactSet:
+        """All contact manifolds with gaps up to ``alert`` (see the module docstring).
+
+        Args:
+            state: positions (x, y wrapped or not) and orientations.
+            alert: alert distance, d (>= 0).
+            previous: manifolds of the previous step (temporal hysteresis), or None.
+
+        Returns:
+            The manifolds, ordered by ``i`` then ``j`` (wall first).
+
+        Raises:
+            ValueError: negative alert, or a box too small for one periodic image per pair.
+        """
+        alert = float(alert)
+        if not alert >= 0.0:
+            raise ValueError(f"alert distance must be >= 0, got {alert}")
+        if self._tables is None or self._tables.shapes is not state.shapes:
+            self._tables = _Tables(state.shapes)
+        tables = self._tables
+        box = state.box
+        limit = 2.0 * (tables.d_max + alert + self.verlet.skin)
+        if not (box.lx > limit and box.ly > limit):
+            raise ValueError(
+                f"box {box.lx:g} x {box.ly:g} too small: periods must exceed 2 (d_max + alert + skin) = {limit:g}"
+            )
+        shapes = state.shapes
+        radius = shapes.radius[state.kind]
+        self.verlet.update(state.position, radius, box.lx, box.ly, alert)
+        geo = world_geometry(state.position, state.quaternion, state.kind, shapes.vertex_start, shapes.vertices,
+                             shapes.face_start, shapes.face_normals, shapes.axis_start, shapes.face_axes,
+                             shapes.direction_start, shapes.edge_directions)
+        eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
+        prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
+        out = narrow_phase(state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
+                           self.verlet.pair_start, self.verlet.pair_j, box.lx, box.ly, alert, eps_f,
+                           tables.max_points, prev_i, prev_j, prev_n)
+        body_i, body_j, shift, normal, ctype, point_start, point, gap, tested = out
+        self.n_candidates = int(self.verlet.pair_start[-1])
+        self.n_tested = int(tested)
+        return ContactSet(body_i=body_i, body_j=body_j, shift=shift, normal=normal, ctype=ctype,
+                          point_start=point_start, point=point, gap=gap, impulse=None)
+
+
+def _previous_arrays(previous: ContactSet | None, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Previous pairs (``i < j``) sorted by ``(i, j)`` with their normals, for the merge walk."""
+    if previous is None or previous.n_manifolds == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+    i = np.asarray(previous.body_i, dtype=np.int64)
+    j = np.asarray(previous.body_j, dtype=np.int64)
+    keep = (j > i) & (j < n)
+    i, j, nrm = i[keep], j[keep], np.asarray(previous.normal, dtype=np.float64)[keep]
+    key = i * (n + 1) + j
+    if len(key) > 1 and np.any(np.diff(key) < 0):
+        order = np.argsort(key, kind="stable")
+        i, j, nrm = i[order], j[order], nrm[order]
+    return np.ascontiguousarray(i), np.ascontiguousarray(j), np.ascontiguousarray(nrm)
+
+
+def detect(state: ParticleState, alert: float, previous: ContactSet | None = None) -> ContactSet:
+    """One-shot contact detection (grid search every call); see the module docstring.
+
+    Args:
+        state: the particles (use the predicted configuration of the time step).
+        alert: alert distance, d.
+        previous: manifolds of the previous step for temporal axis hysteresis, or None.
+
+    Returns:
+        All manifolds with gaps up to ``alert``.
+    """
+    return Detector(skin=0.0).detect(state, alert, previous)

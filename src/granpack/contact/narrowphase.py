@@ -1,0 +1,840 @@
+"""Narrow phase: one contact manifold per candidate pair, for every pair of shape kinds.
+
+A manifold is one unit normal ``n`` (from the antagonist ``j`` towards the candidate ``i``, see
+:mod:`granpack.contact.contacts`) and one to four points, each with its own signed gap (> 0 open,
+< 0 interpenetration, in d), kept when the gap is at most the alert distance. Kernels work in a
+frame centred on the antagonist's image ``x_j + shift`` (called body A) with the candidate ``i``
+(body B) at offset ``x_i - x_j - shift``; the normal points from A to B.
+
+Pair kinds (PHYSICS.md §3.2-3.3):
+
+- sphere-sphere, sphere-wall: closed forms.
+- polyhedron-wall (plane z = 0): every vertex with ``z < alert`` is a point, gap ``z``.
+- sphere-polyhedron: exact closest point of the polyhedron to the centre (GJK with a one-point
+  set); centre inside: face of least depth.
+- polyhedron-polyhedron: separating-axis test over the distinct face normals of both bodies and
+  the cross products of their distinct edge directions (``ShapeTable.face_axes``,
+  ``edge_directions``), early exit as soon as one axis separates by more than the alert
+  distance. The manifold is then built from the best axis: for a face axis the incident face of
+  the other body is clipped against the reference face's side planes (Sutherland-Hodgman) and
+  more than four points are reduced to four that keep the contact area; for an edge axis it is the
+  closest-point pair of the two supporting edges. Face axes are preferred unless an edge axis is
+  better by more than ``eps_f`` (hysteresis, Box2D/Bullet practice).
+
+Exact gaps: for a separated pair the separating-axis value is only a lower bound of the distance
+(exact when the closest features are vertex-face or crossed edges). The manifold is accepted
+only when its smallest gap equals its axis separation (then both equal the distance);
+otherwise the distance and closest points come from GJK (vertex-vertex, vertex-edge and parallel
+edges), giving a single point, or two points for parallel edges overlapping along a segment.
+For an interpenetrating pair the smallest gap is the separating-axis depth of the chosen axis
+(the minimum translational distance up to the hysteresis ``eps_f``).
+
+Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
+closer than ``1e-3 eps_f`` are merged.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from granpack._numba import jit
+from granpack.contact._gjk import gjk_distance
+from granpack.contact.contacts import manifold_type_nb
+from granpack.rotations import quat_to_matrix_nb
+
+__all__ = ["world_geometry", "narrow_phase", "MAX_POINTS"]
+
+#: at most this many points per manifold
+MAX_POINTS = 4
+
+_AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE = 0, 1, 2
+#: |cos| between the previous normal and an axis above which the axis counts as the previous one
+_HINT_COS = 0.999
+
+
+@jit
+def world_geometry(position, quaternion, kind, vertex_start, vertices, face_start, face_normals, axis_start, face_axes,
+                   direction_start, edge_directions):
+    """Rotate every polyhedron's body-frame geometry into the world frame (relative to its centre).
+
+    Args:
+        position: ``(N, 3)`` centres, d (only its length is used).
+        quaternion: ``(N, 4)`` unit quaternions ``(w, x, y, z)``.
+        kind: ``(N,)`` kind index into the shape table.
+        vertex_start, vertices, face_start, face_normals, axis_start, face_axes, direction_start,
+            edge_directions: the :class:`~granpack.shapes.ShapeTable` arrays of the same names.
+
+    Returns:
+        ``(pv, pf, pa, pd, rv, fn, ax, dr)``: per-particle CSR offsets ``(N+1,)`` into the world
+        vertex offsets ``rv`` (``x - x_p``, d), face normals ``fn``, face axes ``ax`` and edge
+        directions ``dr`` (all ``(n, 3)``, same row order as the kind's table rows).
+    """
+    n = len(kind)
+    pv = np.zeros(n + 1, np.int64)
+    pf = np.zeros(n + 1, np.int64)
+    pa = np.zeros(n + 1, np.int64)
+    pd = np.zeros(n + 1, np.int64)
+    for p in range(n):
+        k = kind[p]
+        pv[p + 1] = pv[p] + vertex_start[k + 1] - vertex_start[k]
+        pf[p + 1] = pf[p] + face_start[k + 1] - face_start[k]
+        pa[p + 1] = pa[p] + axis_start[k + 1] - axis_start[k]
+        pd[p + 1] = pd[p] + direction_start[k + 1] - direction_start[k]
+    rv = np.empty((pv[n], 3))
+    fn = np.empty((pf[n], 3))
+    ax = np.empty((pa[n], 3))
+    dr = np.empty((pd[n], 3))
+    for p in range(n):
+        if pv[p + 1] == pv[p]:
+            continue
+        k = kind[p]
+        R = quat_to_matrix_nb(quaternion[p])
+        _rotate_rows(R, vertices, vertex_start[k], vertex_start[k + 1], rv, pv[p])
+        _rotate_rows(R, face_normals, face_start[k], face_start[k + 1], fn, pf[p])
+        _rotate_rows(R, face_axes, axis_start[k], axis_start[k + 1], ax, pa[p])
+        _rotate_rows(R, edge_directions, direction_start[k], direction_start[k + 1], dr, pd[p])
+    return pv, pf, pa, pd, rv, fn, ax, dr
+
+
+@jit
+def _rotate_rows(R, src, s0, s1, dst, d0):
+    for r in range(s1 - s0):
+        x, y, z = src[s0 + r, 0], src[s0 + r, 1], src[s0 + r, 2]
+        dst[d0 + r, 0] = R[0, 0] * x + R[0, 1] * y + R[0, 2] * z
+        dst[d0 + r, 1] = R[1, 0] * x + R[1, 1] * y + R[1, 2] * z
+        dst[d0 + r, 2] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z
+
+
+# ---------------------------------------------------------------------------------------------
+# separating-axis test
+
+
+@jit
+def _interval(rv, v0, v1, ox, oy, oz, ux, uy, uz):
+    """Min and max of ``u . (o + rv[k])`` over rows ``k`` in ``[v0, v1)``."""
+    lo = math.inf
+    hi = -math.inf
+    for k in range(v0, v1):
+        d = ux * (ox + rv[k, 0]) + uy * (oy + rv[k, 1]) + uz * (oz + rv[k, 2])
+        lo = min(lo, d)
+        hi = max(hi, d)
+    return lo, hi
+
+
+@jit
+def _separation(rv, a0, a1, b0, b1, ox, oy, oz, ux, uy, uz):
+    """Signed separation of A (rows a0:a1) and B (o + rows b0:b1) along the line of ``u``.
+
+    Returns ``(s, sign)``: ``s`` = the larger of ``min_B - max_A`` (B on the +u side, sign +1)
+    and ``min_A - max_B`` (sign -1).
+    """
+    loa, hia = _interval(rv, a0, a1, 0.0, 0.0, 0.0, ux, uy, uz)
+    lob, hib = _interval(rv, b0, b1, ox, oy, oz, ux, uy, uz)
+    s1 = lob - hia
+    s2 = loa - hib
+    if s1 >= s2:
+        return s1, 1.0
+    return s2, -1.0
+
+
+@jit
+def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert):
+    """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
+
+    Returns:
+        ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez)``: ``far`` is True when
+        some axis separates by more than ``alert``. Otherwise the best face axis of A
+        (separation, row in ``ax``, sign), of B, and the best edge-edge axis (separation, local
+        direction indices on A and B, and the oriented unit axis from A to B; ``se = -inf`` when
+        every edge pair is parallel).
+    """
+    inf = math.inf
+    # cheap first try: the centre-to-centre direction
+    dd = math.sqrt(ox * ox + oy * oy + oz * oz)
+    if dd > 0.0:
+        s, _ = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ox / dd, oy / dd, oz / dd)
+        if s > alert:
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+    sfa, kfa, gfa = -inf, -1, 1.0
+    for k in range(aa0, aa1):
+        s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2])
+        if s > alert:
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+        if s > sfa:
+            sfa, kfa, gfa = s, k, g
+    sfb, kfb, gfb = -inf, -1, 1.0
+    for k in range(ab0, ab1):
+        s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2])
+        if s > alert:
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+        if s > sfb:
+            sfb, kfb, gfb = s, k, g
+    se, ie, je, ex, ey, ez = -inf, -1, -1, 0.0, 0.0, 0.0
+    for i in range(da0, da1):
+        for j in range(db0, db1):
+            cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
+            cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
+            cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
+            c2 = cx * cx + cy * cy + cz * cz
+            if c2 < 1e-12:
+                continue
+            c = 1.0 / math.sqrt(c2)
+            cx *= c
+            cy *= c
+            cz *= c
+            s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, cx, cy, cz)
+            if s > alert:
+                return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+            if s > se:
+                se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
+    return False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez
+
+
+# ---------------------------------------------------------------------------------------------
+# manifold construction
+
+
+@jit
+def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0, inc_f1,
+               inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
+    """Clip the incident face against the reference face with outward normal ``n``.
+
+    The reference body has vertices ``ro + ref_rv[ref_v0:ref_v1]``, world face normals
+    ``ref_fn[ref_f0:ref_f1]`` (global face rows of its kind start at ``face_row_ref``); the
+    reference face is the one whose normal is closest to ``n``. The incident body's face is the
+    one whose normal is most opposed to ``n``.
+
+    Returns:
+        ``(count, gmin)``: points written to ``out`` (position on the midpoint between the two
+        surfaces) and their gaps ``gout`` (``n . p - delta_ref``), keeping gaps ``<= alert``;
+        ``gmin`` is the smallest gap over all clipped points (``inf`` if the clip is empty).
+    """
+    # reference face: normal closest to n; incident face: normal most opposed to n
+    fr = ref_f0
+    best = -math.inf
+    for f in range(ref_f0, ref_f1):
+        d = ref_fn[f, 0] * nx + ref_fn[f, 1] * ny + ref_fn[f, 2] * nz
+        if d > best:
+            best, fr = d, f
+    fi = inc_f0
+    best = math.inf
+    for f in range(inc_f0, inc_f1):
+        d = inc_fn[f, 0] * nx + inc_fn[f, 1] * ny + inc_fn[f, 2] * nz
+        if d < best:
+            best, fi = d, f
+    _, delta = _interval(ref_rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
+    row_i = face_row_inc + fi - inc_f0
+    m = 0
+    for k in range(fvs[row_i], fvs[row_i + 1]):
+        v = inc_v0 + fverts[k]
+        buf[m, 0] = iox + rvi[v, 0]
+        buf[m, 1] = ioy + rvi[v, 1]
+        buf[m, 2] = ioz + rvi[v, 2]
+        m += 1
+    row_r = face_row_ref + fr - ref_f0
+    r0, r1 = fvs[row_r], fvs[row_r + 1]
+    nr = r1 - r0
+    for e in range(nr):
+        va = ref_v0 + fverts[r0 + e]
+        vb = ref_v0 + fverts[r0 + (e + 1) % nr]
+        ax_, ay_, az_ = rox + ref_rv[va, 0], roy + ref_rv[va, 1], roz + ref_rv[va, 2]
+        ex = rox + ref_rv[vb, 0] - ax_
+        ey = roy + ref_rv[vb, 1] - ay_
+        ez = roz + ref_rv[vb, 2] - az_
+        # side plane normal (outward of the face polygon) and offset
+        sx = ey * nz - ez * ny
+        sy = ez * nx - ex * nz
+        sz = ex * ny - ey * nx
+        so = sx * ax_ + sy * ay_ + sz * az_
+        m2 = 0
+        for k in range(m):
+            k2 = (k + 1) % m
+            d1 = sx * buf[k, 0] + sy * buf[k, 1] + sz * buf[k, 2] - so
+            d2 = sx * buf[k2, 0] + sy * buf[k2, 1] + sz * buf[k2, 2] - so
+            if d1 <= 0.0:
+                buf2[m2, 0], buf2[m2, 1], buf2[m2, 2] = buf[k, 0], buf[k, 1], buf[k, 2]
+                m2 += 1
+            if (d1 < 0.0 and d2 > 0.0) or (d1 > 0.0 and d2 < 0.0):
+                t = d1 / (d1 - d2)
+                buf2[m2, 0] = buf[k, 0] + t * (buf[k2, 0] - buf[k, 0])
+                buf2[m2, 1] = buf[k, 1] + t * (buf[k2, 1] - buf[k, 1])
+                buf2[m2, 2] = buf[k, 2] + t * (buf[k2, 2] - buf[k, 2])
+                m2 += 1
+        m = m2
+        for k in range(m):
+            buf[k, 0], buf[k, 1], buf[k, 2] = buf2[k, 0], buf2[k, 1], buf2[k, 2]
+        if m == 0:
+            return 0, math.inf
+    cnt = 0
+    gmin = math.inf
+    for k in range(m):
+        g = nx * buf[k, 0] + ny * buf[k, 1] + nz * buf[k, 2] - delta
+        gmin = min(gmin, g)
+        if g <= alert:
+            out[cnt, 0] = buf[k, 0] - 0.5 * g * nx
+            out[cnt, 1] = buf[k, 1] - 0.5 * g * ny
+            out[cnt, 2] = buf[k, 2] - 0.5 * g * nz
+            gout[cnt] = g
+            cnt += 1
+    return cnt, gmin
+
+
+@jit
+def _support_edge(rv, v0, o_x, o_y, o_z, e0, e1, edges, edge_dir, dloc, nx, ny, nz, sign):
+    """Edge (row in ``edges``) of direction index ``dloc`` maximising ``sign * n . midpoint``."""
+    best = -math.inf
+    be = -1
+    for e in range(e0, e1):
+        if edge_dir[e] != dloc:
+            continue
+        p = v0 + edges[e, 0]
+        q = v0 + edges[e, 1]
+        h = sign * (nx * (rv[p, 0] + rv[q, 0] + 2 * o_x) + ny * (rv[p, 1] + rv[q, 1] + 2 * o_y)
+                    + nz * (rv[p, 2] + rv[q, 2] + 2 * o_z))
+        if h > best:
+            best, be = h, e
+    return be
+
+
+@jit
+def _line_params(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):
+    """Parameters ``(s, t)`` of the closest points of lines ``p1 + s d1`` and ``p2 + t d2``."""
+    rx, ry, rz = p1x - p2x, p1y - p2y, p1z - p2z
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    c = d1x * rx + d1y * ry + d1z * rz
+    f = d2x * rx + d2y * ry + d2z * rz
+    den = a * e - b * b
+    if den <= 1e-300:
+        return 0.0, f / e
+    s = (b * f - c * e) / den
+    t = (b * s + f) / e
+    return s, t
+
+
+@jit
+def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt):
+    """Merge points closer than ``eps_pt`` and keep at most four that span the largest area.
+
+    Order of choice: the deepest point, the farthest from it, the one maximising the triangle
+    area, then the one adding the most area (all measured in the plane normal to n).
+    Returns the new count; the kept points are moved to the front of ``pts``/``gp``.
+    """
+    m = 0
+    for k in range(cnt):
+        dup = -1
+        for q in range(m):
+            dx = pts[k, 0] - pts[q, 0]
+            dy = pts[k, 1] - pts[q, 1]
+            dz = pts[k, 2] - pts[q, 2]
+            if dx * dx + dy * dy + dz * dz <= eps_pt * eps_pt:
+                dup = q
+                break
+        if dup >= 0:
+            gp[dup] = min(gp[dup], gp[k])
+            continue
+        pts[m, 0], pts[m, 1], pts[m, 2] = pts[k, 0], pts[k, 1], pts[k, 2]
+        gp[m] = gp[k]
+        m += 1
+    if m <= MAX_POINTS:
+        return m
+    # tangent basis
+    tx, ty, tz, sx, sy, sz = _tangents(nx, ny, nz)
+    u = np.empty(m)
+    w = np.empty(m)
+    for k in range(m):
+        u[k] = pts[k, 0] * tx + pts[k, 1] * ty + pts[k, 2] * tz
+        w[k] = pts[k, 0] * sx + pts[k, 1] * sy + pts[k, 2] * sz
+    chosen = np.empty(MAX_POINTS, np.int64)
+    i0 = 0
+    for k in range(m):
+        if gp[k] < gp[i0]:
+            i0 = k
+    i1, best = -1, -1.0
+    for k in range(m):
+        d = (u[k] - u[i0]) ** 2 + (w[k] - w[i0]) ** 2
+        if k != i0 and d > best:
+            i1, best = k, d
+    i2, best, sgn = -1, -1.0, 1.0
+    for k in range(m):
+        if k == i0 or k == i1:
+            continue
+        a = (u[i1] - u[i0]) * (w[k] - w[i0]) - (w[i1] - w[i0]) * (u[k] - u[i0])
+        if abs(a) > best:
+            i2, best, sgn = k, abs(a), 1.0 if a >= 0.0 else -1.0
+    chosen[0], chosen[1], chosen[2] = i0, i1, i2
+    i3, best = -1, -1.0
+    for k in range(m):
+        if k == i0 or k == i1 or k == i2:
+            continue
+        extra = 0.0
+        for e in range(3):
+            pa = chosen[e]
+            pb = chosen[(e + 1) % 3]
+            a = sgn * ((u[pb] - u[pa]) * (w[k] - w[pa]) - (w[pb] - w[pa]) * (u[k] - u[pa]))
+            extra = max(extra, -a)
+        if extra > best:
+            i3, best = k, extra
+    chosen[3] = i3
+    keep = np.empty((MAX_POINTS, 3))
+    kg = np.empty(MAX_POINTS)
+    for c in range(MAX_POINTS):
+        keep[c, 0], keep[c, 1], keep[c, 2] = pts[chosen[c], 0], pts[chosen[c], 1], pts[chosen[c], 2]
+        kg[c] = gp[chosen[c]]
+    for c in range(MAX_POINTS):
+        pts[c, 0], pts[c, 1], pts[c, 2] = keep[c, 0], keep[c, 1], keep[c, 2]
+        gp[c] = kg[c]
+    return MAX_POINTS
+
+
+@jit
+def _tangents(nx, ny, nz):
+    """Orthonormal ``t, s`` with ``(n, t, s)`` right-handed; ``t`` avoids the axis most aligned with n."""
+    ax_, ay_, az_ = abs(nx), abs(ny), abs(nz)
+    if ax_ <= ay_ and ax_ <= az_:
+        tx, ty, tz = 0.0, nz, -ny
+    elif ay_ <= az_:
+        tx, ty, tz = -nz, 0.0, nx
+    else:
+        tx, ty, tz = ny, -nx, 0.0
+    tn = math.sqrt(tx * tx + ty * ty + tz * tz)
+    tx, ty, tz = tx / tn, ty / tn, tz / tn
+    sx = ny * tz - nz * ty
+    sy = nz * tx - nx * tz
+    sz = nx * ty - ny * tx
+    return tx, ty, tz, sx, sy, sz
+
+
+@jit
+def _band_vertices(rv, v0, v1, ox, oy, oz, nx, ny, nz, top, band, idx):
+    """Rows k with ``n . (o + rv[k]) >= top - band``; returns their count (first two in ``idx``)."""
+    c = 0
+    for k in range(v0, v1):
+        h = nx * (ox + rv[k, 0]) + ny * (oy + rv[k, 1]) + nz * (oz + rv[k, 2])
+        if h >= top - band:
+            if c < 2:
+                idx[c] = k
+            c += 1
+    return c
+
+
+@jit
+def _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp):
+    """Manifold from the exact closest points (GJK) of A and B.
+
+    Returns ``(count, nx, ny, nz)`` with count 0 if the pair is farther than ``alert`` and -1 if
+    GJK finds the bodies touching or intersecting.
+    """
+    W, ia, ib, lam, tmp, idx, _, _ = scr
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert, W, ia, ib, lam, tmp)
+    if st == 1 or (st == 0 and dist > alert):
+        return 0, 0.0, 0.0, 0.0
+    if st == 2:
+        return -1, 0.0, 0.0, 0.0
+    nx, ny, nz = (qx - px) / dist, (qy - py) / dist, (qz - pz) / dist
+    # parallel edges overlapping along a segment: two points
+    topa = nx * px + ny * py + nz * pz
+    na = _band_vertices(rv, a0, a1, 0.0, 0.0, 0.0, nx, ny, nz, topa, eps_f, idx[0:2])
+    nb = _band_vertices(rv, b0, b1, ox, oy, oz, -nx, -ny, -nz, -(nx * qx + ny * qy + nz * qz), eps_f, idx[2:4])
+    cnt = 0
+    if na == 2 and nb == 2:
+        p0, p1, q0, q1 = idx[0], idx[1], idx[2], idx[3]
+        dx, dy, dz = rv[p1, 0] - rv[p0, 0], rv[p1, 1] - rv[p0, 1], rv[p1, 2] - rv[p0, 2]
+        la = math.sqrt(dx * dx + dy * dy + dz * dz)
+        dx, dy, dz = dx / la, dy / la, dz / la
+        fx, fy, fz = rv[q1, 0] - rv[q0, 0], rv[q1, 1] - rv[q0, 1], rv[q1, 2] - rv[q0, 2]
+        lb = math.sqrt(fx * fx + fy * fy + fz * fz)
+        cross = math.sqrt((dy * fz - dz * fy) ** 2 + (dz * fx - dx * fz) ** 2 + (dx * fy - dy * fx) ** 2) / lb
+        if cross < eps_f / la:
+            # parameters of B's ends along A's edge
+            tb0 = dx * (ox + rv[q0, 0] - rv[p0, 0]) + dy * (oy + rv[q0, 1] - rv[p0, 1]) + dz * (oz + rv[q0, 2] - rv[p0, 2])
+            tb1 = dx * (ox + rv[q1, 0] - rv[p0, 0]) + dy * (oy + rv[q1, 1] - rv[p0, 1]) + dz * (oz + rv[q1, 2] - rv[p0, 2])
+            lo = max(0.0, min(tb0, tb1))
+            hi = min(la, max(tb0, tb1))
+            if hi - lo > eps_f and tb1 != tb0:
+                for t in (lo, hi):
+                    u = (t - tb0) / (tb1 - tb0)
+                    bx = ox + rv[q0, 0] + u * (rv[q1, 0] - rv[q0, 0])
+                    by = oy + rv[q0, 1] + u * (rv[q1, 1] - rv[q0, 1])
+                    bz = oz + rv[q0, 2] + u * (rv[q1, 2] - rv[q0, 2])
+                    axp = rv[p0, 0] + t * dx
+                    ayp = rv[p0, 1] + t * dy
+                    azp = rv[p0, 2] + t * dz
+                    g = nx * (bx - axp) + ny * (by - ayp) + nz * (bz - azp)
+                    pts[cnt, 0] = bx - 0.5 * g * nx
+                    pts[cnt, 1] = by - 0.5 * g * ny
+                    pts[cnt, 2] = bz - 0.5 * g * nz
+                    gp[cnt] = g
+                    cnt += 1
+                if min(gp[0], gp[1]) <= dist + 1e-12 * (1.0 + dist):
+                    return cnt, nx, ny, nz
+                cnt = 2
+    pts[cnt, 0] = 0.5 * (px + qx)
+    pts[cnt, 1] = 0.5 * (py + qy)
+    pts[cnt, 2] = 0.5 * (pz + qz)
+    gp[cnt] = dist
+    return cnt + 1, nx, ny, nz
+
+
+@jit
+def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp):
+    """Single point at the support vertex of B along -n (or of A along n), gap ``sigma``."""
+    if from_a:
+        best = -math.inf
+        k0 = a0
+        for k in range(a0, a1):
+            h = nx * rv[k, 0] + ny * rv[k, 1] + nz * rv[k, 2]
+            if h > best:
+                best, k0 = h, k
+        pts[0, 0] = rv[k0, 0] + 0.5 * sigma * nx
+        pts[0, 1] = rv[k0, 1] + 0.5 * sigma * ny
+        pts[0, 2] = rv[k0, 2] + 0.5 * sigma * nz
+    else:
+        best = math.inf
+        k0 = b0
+        for k in range(b0, b1):
+            h = nx * (ox + rv[k, 0]) + ny * (oy + rv[k, 1]) + nz * (oz + rv[k, 2])
+            if h < best:
+                best, k0 = h, k
+        pts[0, 0] = ox + rv[k0, 0] - 0.5 * sigma * nx
+        pts[0, 1] = oy + rv[k0, 1] - 0.5 * sigma * ny
+        pts[0, 2] = oz + rv[k0, 2] - 0.5 * sigma * nz
+    gp[0] = sigma
+    return 1
+
+
+@jit
+def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp):
+    """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``).
+
+    ``(hx, hy, hz)`` is the pair's normal at the previous step (zero if none): the separating
+    axis closest to it is tried first when it is within ``eps_f`` of the best separation.
+
+    Returns ``(count, nx, ny, nz)``: number of points written to ``pts`` (A-centred frame) and
+    ``gp``, and the normal from A to B; count 0 means no contact within ``alert``.
+    """
+    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
+    _, _, _, _, _, _, buf, buf2 = scr
+    a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
+    far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez = _sat(
+        rv, a0, a1, b0, b1, ax, pa[a], pa[a + 1], pa[b], pa[b + 1], dr, pd[a], pd[a + 1], pd[b], pd[b + 1], ox, oy, oz, alert
+    )
+    if far:
+        return 0, 0.0, 0.0, 0.0
+    sface = max(sfa, sfb)
+    sigma = max(sface, se)
+    tol_x = 1e-10 * (1.0 + abs(sigma))
+    ka, kb = kind[a], kind[b]
+    # candidate order: the better face axis, the other one, the edge axis; the edge axis first
+    # only if it beats both face axes by more than eps_f (hysteresis); a candidate whose axis is
+    # the previous step's normal (hx, hy, hz) goes first (temporal hysteresis)
+    first_face = _AXIS_FACE_A if sfa >= sfb else _AXIS_FACE_B
+    second_face = _AXIS_FACE_B if sfa >= sfb else _AXIS_FACE_A
+    if se > sface + eps_f:
+        o0, o1, o2 = _AXIS_EDGE, first_face, second_face
+    else:
+        o0, o1, o2 = first_face, second_face, _AXIS_EDGE
+    if hx != 0.0 or hy != 0.0 or hz != 0.0:
+        ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2]) if sfa >= sigma - eps_f else 0.0
+        cb = abs(hx * ax[kfb, 0] + hy * ax[kfb, 1] + hz * ax[kfb, 2]) if sfb >= sigma - eps_f else 0.0
+        ce = abs(hx * ex + hy * ey + hz * ez) if se >= sigma - eps_f else 0.0
+        if max(ca, cb, ce) > _HINT_COS:
+            if ca >= cb and ca >= ce:
+                o0, o1, o2 = _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE
+            elif cb >= ce:
+                o0, o1, o2 = _AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE
+            else:
+                o0, o1, o2 = _AXIS_EDGE, first_face, second_face
+    for c in range(3):
+        which = o0 if c == 0 else (o1 if c == 1 else o2)
+        if which == _AXIS_FACE_A:
+            sk = sfa
+        elif which == _AXIS_FACE_B:
+            sk = sfb
+        else:
+            sk = se
+        if sk < sigma - eps_f or sk == -math.inf:
+            continue
+        if which == _AXIS_FACE_A or which == _AXIS_FACE_B:
+            if which == _AXIS_FACE_A:
+                g = gfa
+                nx, ny, nz = g * ax[kfa, 0], g * ax[kfa, 1], g * ax[kfa, 2]
+                cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], fn, rv, b0, ox, oy, oz, pf[b],
+                                       pf[b + 1], fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert,
+                                       buf, buf2, pts, gp)
+            else:
+                g = gfb
+                nx, ny, nz = g * ax[kfb, 0], g * ax[kfb, 1], g * ax[kfb, 2]
+                # reference face on B, outward normal -n
+                cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], fn, rv, a0, 0.0, 0.0, 0.0, pf[a],
+                                       pf[a + 1], fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert,
+                                       buf, buf2, pts, gp)
+            if cnt == 0:
+                continue
+            if abs(gmin - sk) <= tol_x:
+                return cnt, nx, ny, nz
+            if sigma <= 0.0 and cnt < buf.shape[0]:
+                # interpenetration whose deepest vertex lies outside the reference face: add it
+                _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B,
+                               pts[cnt:], gp[cnt:])
+                return cnt + 1, nx, ny, nz
+        else:
+            ea = _support_edge(rv, a0, 0.0, 0.0, 0.0, edge_start[ka], edge_start[ka + 1], edges, edge_dir,
+                               ie, ex, ey, ez, 1.0)
+            eb = _support_edge(rv, b0, ox, oy, oz, edge_start[kb], edge_start[kb + 1], edges, edge_dir,
+                               je, ex, ey, ez, -1.0)
+            if ea < 0 or eb < 0:
+                continue
+            p0 = a0 + edges[ea, 0]
+            p1 = a0 + edges[ea, 1]
+            q0 = b0 + edges[eb, 0]
+            q1 = b0 + edges[eb, 1]
+            d1x, d1y, d1z = rv[p1, 0] - rv[p0, 0], rv[p1, 1] - rv[p0, 1], rv[p1, 2] - rv[p0, 2]
+            d2x, d2y, d2z = rv[q1, 0] - rv[q0, 0], rv[q1, 1] - rv[q0, 1], rv[q1, 2] - rv[q0, 2]
+            s, t = _line_params(rv[p0, 0], rv[p0, 1], rv[p0, 2], d1x, d1y, d1z, ox + rv[q0, 0], oy + rv[q0, 1],
+                                oz + rv[q0, 2], d2x, d2y, d2z)
+            if -1e-12 <= s <= 1.0 + 1e-12 and -1e-12 <= t <= 1.0 + 1e-12:
+                cax = rv[p0, 0] + s * d1x
+                cay = rv[p0, 1] + s * d1y
+                caz = rv[p0, 2] + s * d1z
+                cbx = ox + rv[q0, 0] + t * d2x
+                cby = oy + rv[q0, 1] + t * d2y
+                cbz = oz + rv[q0, 2] + t * d2z
+                pts[0, 0], pts[0, 1], pts[0, 2] = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
+                gp[0] = se
+                return 1, ex, ey, ez
+    if sigma > 0.0:
+        cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
+        if cnt >= 0:
+            return cnt, nx, ny, nz
+    # interpenetration (or touching) without an exact manifold: deepest support point, best axis
+    if se >= sface:
+        nx, ny, nz = ex, ey, ez
+        from_a = False
+    elif sfa >= sfb:
+        nx, ny, nz = gfa * ax[kfa, 0], gfa * ax[kfa, 1], gfa * ax[kfa, 2]
+        from_a = False
+    else:
+        nx, ny, nz = gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2]
+        from_a = True
+    _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
+    return 1, nx, ny, nz
+
+
+@jit
+def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
+    """Sphere A (radius ``ra``, at the origin) against polyhedron ``b`` (at ``o``)."""
+    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
+    W, ia, ib, lam, tmp, idx, _, _ = scr
+    b0, b1 = pv[b], pv[b + 1]
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, rv, b0, b1, ox, oy, oz, alert + ra, W, ia, ib, lam, tmp)
+    if st == 1:
+        return 0, 0.0, 0.0, 0.0
+    if st == 0:
+        g = dist - ra
+        if g > alert:
+            return 0, 0.0, 0.0, 0.0
+        nx, ny, nz = qx / dist, qy / dist, qz / dist
+        pts[0, 0] = 0.5 * (ra * nx + qx)
+        pts[0, 1] = 0.5 * (ra * ny + qy)
+        pts[0, 2] = 0.5 * (ra * nz + qz)
+        gp[0] = g
+        return 1, nx, ny, nz
+    # centre inside B: face of least depth; B leaves along -n_f
+    f0 = face_start[kind[b]]
+    best = math.inf
+    fb = pf[b]
+    for f in range(pf[b], pf[b + 1]):
+        depth = face_offsets[f0 + f - pf[b]] + fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz
+        if depth < best:
+            best, fb = depth, f
+    nx, ny, nz = -fn[fb, 0], -fn[fb, 1], -fn[fb, 2]
+    pts[0, 0] = -0.5 * (best - ra) * nx
+    pts[0, 1] = -0.5 * (best - ra) * ny
+    pts[0, 2] = -0.5 * (best - ra) * nz
+    gp[0] = -(best + ra)
+    return 1, nx, ny, nz
+
+
+@jit
+def _poly_sphere(a, rb, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
+    """Polyhedron ``a`` (at the origin) against sphere B (radius ``rb``, at ``o``)."""
+    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
+    W, ia, ib, lam, tmp, idx, _, _ = scr
+    a0, a1 = pv[a], pv[a + 1]
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, one, 0, 1, ox, oy, oz, alert + rb, W, ia, ib, lam, tmp)
+    if st == 1:
+        return 0, 0.0, 0.0, 0.0
+    if st == 0:
+        g = dist - rb
+        if g > alert:
+            return 0, 0.0, 0.0, 0.0
+        nx, ny, nz = (qx - px) / dist, (qy - py) / dist, (qz - pz) / dist
+        pts[0, 0] = px + 0.5 * g * nx
+        pts[0, 1] = py + 0.5 * g * ny
+        pts[0, 2] = pz + 0.5 * g * nz
+        gp[0] = g
+        return 1, nx, ny, nz
+    f0 = face_start[kind[a]]
+    best = math.inf
+    fa = pf[a]
+    for f in range(pf[a], pf[a + 1]):
+        depth = face_offsets[f0 + f - pf[a]] - (fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz)
+        if depth < best:
+            best, fa = depth, f
+    nx, ny, nz = fn[fa, 0], fn[fa, 1], fn[fa, 2]
+    pts[0, 0] = ox + 0.5 * (best - rb) * nx
+    pts[0, 1] = oy + 0.5 * (best - rb) * ny
+    pts[0, 2] = oz + 0.5 * (best - rb) * nz
+    gp[0] = -(best + rb)
+    return 1, nx, ny, nz
+
+
+@jit
+def _poly_wall(i, zc, geo, alert, pts, gp):
+    """Vertices of polyhedron ``i`` (centre height ``zc``) below ``alert``; points relative to its centre.
+
+    ``pts`` must have at least as many rows as the polyhedron has vertices.
+    """
+    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    cnt = 0
+    for k in range(pv[i], pv[i + 1]):
+        z = zc + rv[k, 2]
+        if z < alert:
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = rv[k, 0], rv[k, 1], rv[k, 2] - 0.5 * z
+            gp[cnt] = z
+            cnt += 1
+    return cnt
+
+
+@jit
+def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j, lx, ly, alert, eps_f, max_points,
+                 prev_i, prev_j, prev_n):
+    """Contact manifolds of all candidate pairs and of the bottom wall.
+
+    Args:
+        position: ``(N, 3)`` centres (x, y wrapped into the cell), d.
+        kind: ``(N,)`` kind index; is_sphere, radius: ``(K,)`` per kind (radius in d).
+        geo: :func:`world_geometry` output; tab: ``(vertex_start, face_start, face_offsets,
+            face_vertex_start, face_vertices, edge_start, edges, edge_dir, kind)``.
+        pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
+        lx, ly: periods, d.
+        alert: alert distance, d.
+        eps_f: feature band / rank tolerance, d.
+        max_points: scratch rows, at least the largest vertex count and twice the largest face
+            size plus one.
+        prev_i, prev_j, prev_n: previous step's pairs (``i < j``, sorted by ``(i, j)``) and
+            normals ``(Q, 3)``, for the temporal axis hysteresis of :func:`poly_poly`.
+
+    Returns:
+        ``(body_i, body_j, shift, normal, ctype, point_start, point, gap, n_tested)``: the
+        :class:`~granpack.contact.contacts.ContactSet` arrays, ordered by ``i`` then ``j`` (the
+        wall, ``j = -1``, first), and the number of pairs whose bounding spheres overlap within
+        ``alert`` (narrow-phase tests).
+    """
+    n = len(kind)
+    cap = pair_start[n] + n
+    body_i = np.empty(cap, np.int64)
+    body_j = np.empty(cap, np.int64)
+    shift = np.empty((cap, 3))
+    normal = np.empty((cap, 3))
+    ctype = np.empty(cap, np.int64)
+    pstart = np.zeros(cap + 1, np.int64)
+    point = np.empty((MAX_POINTS * cap, 3))
+    gap = np.empty(MAX_POINTS * cap)
+    scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
+           np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)))
+    one = np.zeros((1, 3))
+    pts = np.empty((max_points, 3))
+    gp = np.empty(max_points)
+    eps_pt = 1e-3 * eps_f
+    m = 0
+    npt = 0
+    tested = 0
+    pp = 0
+    nprev = len(prev_i)
+    for i in range(n):
+        ki = kind[i]
+        xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
+        ri = radius[ki]
+        if zi - ri < alert:
+            if is_sphere[ki]:
+                cnt = 0
+                g = zi - ri
+                if g < alert:
+                    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
+                    gp[0] = g
+                    cnt = 1
+            else:
+                cnt = _poly_wall(i, zi, geo, alert, pts, gp)
+            if cnt > 0:
+                cnt = _reduce_points(pts, gp, cnt, 0.0, 0.0, 1.0, eps_pt)
+                body_i[m], body_j[m] = i, -1
+                shift[m, 0], shift[m, 1], shift[m, 2] = 0.0, 0.0, 0.0
+                normal[m, 0], normal[m, 1], normal[m, 2] = 0.0, 0.0, 1.0
+                ctype[m] = manifold_type_nb(pts, cnt, 0.0, 0.0, 1.0, eps_f)
+                for k in range(cnt):
+                    point[npt, 0], point[npt, 1], point[npt, 2] = xi + pts[k, 0], yi + pts[k, 1], zi + pts[k, 2]
+                    gap[npt] = gp[k]
+                    npt += 1
+                m += 1
+                pstart[m] = npt
+        for q in range(pair_start[i], pair_start[i + 1]):
+            j = pair_j[q]
+            kj = kind[j]
+            dx = xi - position[j, 0]
+            dy = yi - position[j, 1]
+            sx = lx * math.floor(dx / lx + 0.5)
+            sy = ly * math.floor(dy / ly + 0.5)
+            ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
+            rr = ri + radius[kj] + alert
+            if ox * ox + oy * oy + oz * oz >= rr * rr:
+                continue
+            tested += 1
+            if is_sphere[ki] and is_sphere[kj]:
+                d = math.sqrt(ox * ox + oy * oy + oz * oz)
+                g = d - ri - radius[kj]
+                if g > alert:
+                    continue
+                if d > 0.0:
+                    nx, ny, nz = ox / d, oy / d, oz / d
+                else:
+                    nx, ny, nz = 0.0, 0.0, 1.0
+                c = radius[kj] + 0.5 * g
+                pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
+                gp[0] = g
+                cnt = 1
+            elif is_sphere[kj]:
+                cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+            elif is_sphere[ki]:
+                cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+            else:
+                while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
+                    pp += 1
+                if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
+                    hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
+                else:
+                    hx, hy, hz = 0.0, 0.0, 0.0
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp)
+            if cnt == 0:
+                continue
+            cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt)
+            body_i[m], body_j[m] = i, j
+            shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
+            normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
+            ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
+            cx, cy, cz = position[j, 0] + sx, position[j, 1] + sy, position[j, 2]
+            for k in range(cnt):
+                point[npt, 0], point[npt, 1], point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
+                gap[npt] = gp[k]
+                npt += 1
+            m += 1
+            pstart[m] = npt
+    return (body_i[:m].copy(), body_j[:m].copy(), shift[:m].copy(), normal[:m].copy(), ctype[:m].copy(),
+            pstart[:m + 1].copy(), point[:npt].copy(), gap[:npt].copy(), tested)
