@@ -282,20 +282,55 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
 
 
 @jit
-def _support_edge(rv, v0, o_x, o_y, o_z, e0, e1, edges, edge_dir, dloc, nx, ny, nz, sign):
-    """Edge (row in ``edges``) of direction index ``dloc`` maximising ``sign * n . midpoint``."""
-    best = -math.inf
-    be = -1
-    for e in range(e0, e1):
-        if edge_dir[e] != dloc:
+def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx, ny, nz, se, pts, gp):
+    """One point from the crossing edges that realise an edge-edge axis ``n`` (from A to B).
+
+    An edge realising the separation along ``n = e_A x e_B`` is perpendicular to ``n``, so it
+    lies whole in A's support plane (``n . x = max_A``), resp. B's (``n . x = min_B``). Several
+    edge pairs can give the same axis (parallel edges of one body, or edge directions of a face
+    lying in the support plane), so the pair is not taken from the direction indices of the
+    axis: every non-parallel pair of edges lying in the two support planes is tried and the first
+    whose closest points are interior to both segments is the contact.
+
+    Returns the number of points written (1, or 0 when no such pair exists, e.g. when the
+    closest features are not two crossing edges).
+    """
+    _, topa = _interval(rv, a0, a1, 0.0, 0.0, 0.0, nx, ny, nz)
+    botb, _ = _interval(rv, b0, b1, ox, oy, oz, nx, ny, nz)
+    tol = 1e-9 * (1.0 + abs(topa) + abs(botb))
+    for ea in range(ea0, ea1):
+        p0 = a0 + edges[ea, 0]
+        p1 = a0 + edges[ea, 1]
+        if (nx * rv[p0, 0] + ny * rv[p0, 1] + nz * rv[p0, 2] < topa - tol
+                or nx * rv[p1, 0] + ny * rv[p1, 1] + nz * rv[p1, 2] < topa - tol):
             continue
-        p = v0 + edges[e, 0]
-        q = v0 + edges[e, 1]
-        h = sign * (nx * (rv[p, 0] + rv[q, 0] + 2 * o_x) + ny * (rv[p, 1] + rv[q, 1] + 2 * o_y)
-                    + nz * (rv[p, 2] + rv[q, 2] + 2 * o_z))
-        if h > best:
-            best, be = h, e
-    return be
+        d1x, d1y, d1z = rv[p1, 0] - rv[p0, 0], rv[p1, 1] - rv[p0, 1], rv[p1, 2] - rv[p0, 2]
+        for eb in range(eb0, eb1):
+            q0 = b0 + edges[eb, 0]
+            q1 = b0 + edges[eb, 1]
+            if (nx * (ox + rv[q0, 0]) + ny * (oy + rv[q0, 1]) + nz * (oz + rv[q0, 2]) > botb + tol
+                    or nx * (ox + rv[q1, 0]) + ny * (oy + rv[q1, 1]) + nz * (oz + rv[q1, 2]) > botb + tol):
+                continue
+            d2x, d2y, d2z = rv[q1, 0] - rv[q0, 0], rv[q1, 1] - rv[q0, 1], rv[q1, 2] - rv[q0, 2]
+            cx = d1y * d2z - d1z * d2y
+            cy = d1z * d2x - d1x * d2z
+            cz = d1x * d2y - d1y * d2x
+            if cx * cx + cy * cy + cz * cz < 1e-12 * (d1x * d1x + d1y * d1y + d1z * d1z) * (
+                    d2x * d2x + d2y * d2y + d2z * d2z):
+                continue
+            s, t = _line_params(rv[p0, 0], rv[p0, 1], rv[p0, 2], d1x, d1y, d1z, ox + rv[q0, 0], oy + rv[q0, 1],
+                                oz + rv[q0, 2], d2x, d2y, d2z)
+            if -1e-9 <= s <= 1.0 + 1e-9 and -1e-9 <= t <= 1.0 + 1e-9:
+                cax = rv[p0, 0] + s * d1x
+                cay = rv[p0, 1] + s * d1y
+                caz = rv[p0, 2] + s * d1z
+                cbx = ox + rv[q0, 0] + t * d2x
+                cby = oy + rv[q0, 1] + t * d2y
+                cbz = oz + rv[q0, 2] + t * d2z
+                pts[0, 0], pts[0, 1], pts[0, 2] = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
+                gp[0] = se
+                return 1
+    return 0
 
 
 @jit
@@ -583,29 +618,8 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp
                                pts[cnt:], gp[cnt:])
                 return cnt + 1, nx, ny, nz
         else:
-            ea = _support_edge(rv, a0, 0.0, 0.0, 0.0, edge_start[ka], edge_start[ka + 1], edges, edge_dir,
-                               ie, ex, ey, ez, 1.0)
-            eb = _support_edge(rv, b0, ox, oy, oz, edge_start[kb], edge_start[kb + 1], edges, edge_dir,
-                               je, ex, ey, ez, -1.0)
-            if ea < 0 or eb < 0:
-                continue
-            p0 = a0 + edges[ea, 0]
-            p1 = a0 + edges[ea, 1]
-            q0 = b0 + edges[eb, 0]
-            q1 = b0 + edges[eb, 1]
-            d1x, d1y, d1z = rv[p1, 0] - rv[p0, 0], rv[p1, 1] - rv[p0, 1], rv[p1, 2] - rv[p0, 2]
-            d2x, d2y, d2z = rv[q1, 0] - rv[q0, 0], rv[q1, 1] - rv[q0, 1], rv[q1, 2] - rv[q0, 2]
-            s, t = _line_params(rv[p0, 0], rv[p0, 1], rv[p0, 2], d1x, d1y, d1z, ox + rv[q0, 0], oy + rv[q0, 1],
-                                oz + rv[q0, 2], d2x, d2y, d2z)
-            if -1e-12 <= s <= 1.0 + 1e-12 and -1e-12 <= t <= 1.0 + 1e-12:
-                cax = rv[p0, 0] + s * d1x
-                cay = rv[p0, 1] + s * d1y
-                caz = rv[p0, 2] + s * d1z
-                cbx = ox + rv[q0, 0] + t * d2x
-                cby = oy + rv[q0, 1] + t * d2y
-                cbz = oz + rv[q0, 2] + t * d2z
-                pts[0, 0], pts[0, 1], pts[0, 2] = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
-                gp[0] = se
+            if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
+                             edge_start[kb + 1], edges, ex, ey, ez, se, pts, gp) == 1:
                 return 1, ex, ey, ez
     if sigma > 0.0:
         cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
