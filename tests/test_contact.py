@@ -389,9 +389,16 @@ def test_gaps_equal_the_exact_distance_and_penetration_depth(rng):
         gmin = m["gaps"].min()
         if g > 0.0:
             n_sep += 1
-            # the separated gap is the exact distance, along the closest-point direction (j -> i)
+            # the separated gap is the exact distance; a single point lies along the closest-point
+            # direction (j -> i); a face manifold has the face's normal, close to that direction
             assert gmin == pytest.approx(g, abs=1e-9)
-            np.testing.assert_allclose(m["normal"], -direction, atol=1e-6)
+            if len(m["gaps"]) == 1:
+                np.testing.assert_allclose(m["normal"], -direction, atol=1e-6)
+            else:
+                faces = np.vstack([quat_to_matrix(state.quaternion[b]) @ shapes[state.kind[b]].face_normals.T
+                                   for b in (i, j)]).reshape(2, 3, -1).transpose(0, 2, 1).reshape(-1, 3)
+                assert np.max(np.abs(faces @ m["normal"])) == pytest.approx(1.0, abs=1e-12)
+                assert m["normal"] @ -direction > 0.99
             # the point of smallest gap is the midpoint of the closest points
             p = m["points"][np.argmin(m["gaps"])]
             va = world_vertices(shapes[state.kind[i]], state.quaternion[i], state.position[i])
@@ -423,3 +430,304 @@ def test_swapping_bodies_flips_the_normal_and_keeps_the_gaps(rng):
         assert len(w["points"]) == len(m["points"])
         dist = np.linalg.norm(w["points"][:, None, :] - m["points"][None, :, :], axis=2)
         assert dist.min(axis=1).max() < 1e-9 and dist.min(axis=0).max() < 1e-9
+
+
+# ---------------------------------------------------------------------------------------------
+# periodic images
+
+
+def face_face_pair(size_a=1.0, size_b=1.0, gap=0.004, fam=(1.0, 1.0)):
+    """Positions and orientations of a face-on-face pair (B on top of A at ``X0``)."""
+    sa, sb = Pinacoid.from_size(size_a, *fam), Pinacoid.from_size(size_b, *fam)
+    qa, pa, ca = face_up(sa, spin=0.2)
+    fb = largest_face(sb)
+    qb = then(rot_to(sb.face_normals[fb], -EZ), spin_z(0.9))
+    pb0, _ = face_polygon(sb, fb, qb, np.zeros(3))
+    xb = ca + gap * EZ - pb0.mean(axis=0)
+    return [sa, sb], np.array([X0, xb]), np.array([qa, qb])
+
+
+@pytest.mark.parametrize("corner", [(1, 0), (0, 1), (1, 1)])
+def test_pair_across_the_periodic_boundary_is_found_once_with_its_shift(corner):
+    box = 5.0
+    shapes, pos, quat = face_face_pair()
+    # tilt the pair so that it is not aligned with z, then lay it across the boundary
+    tilt = quat_from_axis_angle([1.0, 1.0, 0.0], 1.1)
+    centre = pos.mean(axis=0)
+    pos = centre + (pos - centre) @ quat_to_matrix(tilt).T
+    quat = np.array([then(q, tilt) for q in quat])
+    ref = detect(make_state(shapes, [0, 1], pos, quat, box=box), ALERT)
+    m_ref = pair_manifold(ref)
+    # move the pair's midpoint onto the boundary (x = 0 and/or y = 0), then wrap
+    target = np.array([box / 2, box / 2, pos[0, 2]])
+    target[0] = 0.0 if corner[0] else target[0]
+    target[1] = 0.0 if corner[1] else target[1]
+    moved = pos + (target - centre)
+    wrapped = Box.square(box).wrap(moved)
+    image = wrapped - moved  # multiples of the period
+    cross = np.abs(image[0] - image[1]) > 0
+    assert np.array_equal(cross[:2], np.array(corner, bool))  # the two grains sit on both sides
+    cs = detect(make_state(shapes, [0, 1], wrapped, quat, box=box), ALERT)
+    assert cs.n_manifolds == 1
+    m = pair_manifold(cs)
+    # x_j + shift is the image of j next to i
+    np.testing.assert_allclose(m["shift"], image[0] - image[1], atol=1e-12)
+    np.testing.assert_allclose(wrapped[1] + m["shift"] - wrapped[0], pos[1] - pos[0], atol=1e-12)
+    np.testing.assert_allclose(m["normal"], m_ref["normal"], atol=1e-12)
+    np.testing.assert_allclose(m["gaps"], m_ref["gaps"], atol=1e-12)
+    np.testing.assert_allclose(m["points"], m_ref["points"] + (wrapped[0] - pos[0]), atol=1e-12)
+    assert m["ctype"] == m_ref["ctype"] == TRIPLE
+
+
+def test_box_too_small_for_one_image_is_refused():
+    shapes, pos, quat = face_face_pair()
+    with pytest.raises(ValueError, match="too small"):
+        detect(make_state(shapes, [0, 1], pos - X0 + 1.0, quat, box=2.0), ALERT)
+    with pytest.raises(ValueError, match="alert"):
+        detect(make_state(shapes, [0, 1], pos, quat), -0.1)
+
+
+# ---------------------------------------------------------------------------------------------
+# the bottom wall
+
+
+@pytest.mark.parametrize("fam", FAMILIES)
+@pytest.mark.parametrize("size", SIZES)
+@pytest.mark.parametrize("gap", [0.003, -0.002])
+def test_grain_on_the_wall_by_a_face_is_triple(fam, size, gap):
+    sh = Pinacoid.from_size(size, *fam)
+    f = largest_face(sh)
+    q = then(rot_to(sh.face_normals[f], -EZ), spin_z(0.4))
+    x = np.array([2.0, 3.0, sh.face_offsets[f] + gap])
+    cs = detect(make_state([sh], [0], [x], [q]), ALERT)
+    assert cs.n_manifolds == 1
+    m = manifolds(cs)[0]
+    assert (m["i"], m["j"], m["ctype"]) == (0, -1, TRIPLE)
+    np.testing.assert_allclose(m["normal"], EZ)
+    np.testing.assert_allclose(m["shift"], 0.0)
+    poly, _ = face_polygon(sh, f, q, x)
+    assert len(m["gaps"]) == len(poly)
+    np.testing.assert_allclose(m["gaps"], gap, atol=1e-12)
+    expected = poly.copy()
+    expected[:, 2] = 0.5 * gap
+    got = m["points"]
+    assert np.linalg.norm(got[:, None, :] - expected[None], axis=2).min(axis=1).max() < 1e-12
+
+
+def test_grain_on_the_wall_by_an_edge_or_a_vertex():
+    sh = Pinacoid.from_size(1.0, 2.0, 3.0)
+    gap = 0.005
+    e = shortest_edge(sh)
+    q = edge_down(sh, e, [1.0, 0.0, 0.0])
+    v = world_vertices(sh, q, np.zeros(3))
+    x = np.array([3.0, 3.0, gap - v[:, 2].min()])
+    m = manifolds(detect(make_state([sh], [0], [x], [q]), ALERT))[0]
+    assert m["ctype"] == DOUBLE and len(m["gaps"]) == 2
+    ends = v[sh.edges[e]] + x
+    ends[:, 2] = 0.5 * gap
+    np.testing.assert_allclose(m["points"][np.argsort(m["points"][:, 0])], ends[np.argsort(ends[:, 0])], atol=1e-12)
+    np.testing.assert_allclose(m["gaps"], gap, atol=1e-12)
+    q = rot_to(feature_down(sh, vertex_faces(sh, 0)), -EZ)
+    v = world_vertices(sh, q, np.zeros(3))
+    x = np.array([3.0, 3.0, gap - v[:, 2].min()])
+    m = manifolds(detect(make_state([sh], [0], [x], [q]), ALERT))[0]
+    assert m["ctype"] == SIMPLE and len(m["gaps"]) == 1
+    np.testing.assert_allclose(m["points"][0], [*(x + v[0])[:2], 0.5 * gap], atol=1e-12)
+    # lifted beyond the alert distance: no wall contact
+    x[2] += ALERT
+    assert detect(make_state([sh], [0], [x], [q]), ALERT).n_manifolds == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# spheres
+
+
+@pytest.mark.parametrize("gap", [0.01, 0.0, -0.004])
+def test_sphere_sphere_and_sphere_wall(rng, gap):
+    d_i, d_j = 1.0 / 3.0, 1.0
+    u = rng.normal(size=3)
+    u /= np.linalg.norm(u)
+    xj = X0
+    xi = xj + (0.5 * (d_i + d_j) + gap) * u
+    cs = detect(make_state([Sphere(d_i), Sphere(d_j)], [0, 1], [xi, xj], np.tile([1.0, 0, 0, 0], (2, 1))), ALERT)
+    m = pair_manifold(cs)
+    assert m["ctype"] == SIMPLE
+    np.testing.assert_allclose(m["normal"], u, atol=1e-12)  # from j to i
+    np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+    np.testing.assert_allclose(m["points"][0], xj + (0.5 * d_j + 0.5 * gap) * u, atol=1e-12)
+    # on the wall
+    x = np.array([1.0, 2.0, 0.5 * d_i + gap])
+    m = manifolds(detect(make_state([Sphere(d_i)], [0], [x], [[1.0, 0, 0, 0]]), ALERT))[0]
+    assert (m["j"], m["ctype"]) == (-1, SIMPLE)
+    np.testing.assert_allclose(m["normal"], EZ)
+    np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+    np.testing.assert_allclose(m["points"][0], [1.0, 2.0, 0.5 * gap], atol=1e-12)
+
+
+def _sphere_poly_case(where, gap, radius):
+    """Polyhedron at X0 (identity), sphere centre and the expected closest point and normal."""
+    sh = Pinacoid.from_size(1.0, 2.0, 1.0)
+    v = sh.vertices
+    if where == "face":
+        f = largest_face(sh)
+        anchor = v[sh.faces[f]].mean(axis=0)
+        n = sh.face_normals[f]
+    elif where == "edge":
+        e = shortest_edge(sh)
+        anchor = v[sh.edges[e]].mean(axis=0)
+        n = feature_down(sh, edge_faces(sh, e))
+    else:
+        anchor = v[4]
+        n = feature_down(sh, vertex_faces(sh, 4))
+    return sh, X0 + anchor + (radius + gap) * n, X0 + anchor, n
+
+
+@pytest.mark.parametrize("where", ["face", "edge", "vertex"])
+@pytest.mark.parametrize("gap", [0.008, -0.003])
+@pytest.mark.parametrize("sphere_first", [True, False])
+def test_sphere_polyhedron_exact_gap_and_normal(where, gap, sphere_first):
+    radius = 1.0 / 6.0
+    sh, centre, closest, n = _sphere_poly_case(where, gap, radius)
+    # overlapping (gap < 0) with the centre still outside: the gap is the centre's distance minus R
+    shapes = [Sphere(2 * radius), sh]
+    if sphere_first:
+        state = make_state(shapes, [0, 1], [centre, X0], [[1.0, 0, 0, 0]] * 2)
+        sign = 1.0  # normal from j (polyhedron) to i (sphere)
+    else:
+        state = make_state(shapes, [1, 0], [X0, centre], [[1.0, 0, 0, 0]] * 2)
+        sign = -1.0
+    m = pair_manifold(detect(state, ALERT))
+    assert m["ctype"] == SIMPLE and len(m["gaps"]) == 1
+    np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+    np.testing.assert_allclose(m["normal"], sign * n, atol=1e-12)
+    np.testing.assert_allclose(m["points"][0], closest + 0.5 * gap * n, atol=1e-12)
+
+
+@pytest.mark.parametrize("sphere_first", [True, False])
+def test_sphere_centre_inside_a_polyhedron(sphere_first):
+    radius = 0.1
+    sh = Pinacoid.from_size(1.0, 1.0, 1.0)
+    f = largest_face(sh)
+    n = sh.face_normals[f]
+    depth = 0.03  # centre this far inside face f, much deeper inside every other face
+    centre = X0 + sh.vertices[sh.faces[f]].mean(axis=0) - depth * n
+    inside = sh.face_offsets - sh.face_normals @ (centre - X0)
+    assert np.argmin(inside) == f and inside.min() == pytest.approx(depth)
+    shapes = [Sphere(2 * radius), sh]
+    if sphere_first:
+        state, sign = make_state(shapes, [0, 1], [centre, X0], [[1.0, 0, 0, 0]] * 2), 1.0
+    else:
+        state, sign = make_state(shapes, [1, 0], [X0, centre], [[1.0, 0, 0, 0]] * 2), -1.0
+    m = pair_manifold(detect(state, ALERT))
+    np.testing.assert_allclose(m["gaps"], [-(depth + radius)], atol=1e-12)
+    np.testing.assert_allclose(m["normal"], sign * n, atol=1e-12)
+    # the point is the midpoint between the face and the sphere's far side along n
+    face_point = centre + depth * n
+    np.testing.assert_allclose(m["points"][0], face_point - 0.5 * (depth + radius) * n, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# Verlet skin
+
+
+def dense_lattice(rng, n_side=4, layers=3, spacing=0.62, mixed=True) -> ParticleState:
+    """Jittered cubic lattice of randomly oriented pinacoids (and a few small spheres) near contact."""
+    shapes = [Pinacoid.from_size(1.0), Pinacoid.from_size(1.0 / 3.0, 2.0, 3.0), Sphere(1.0 / 3.0)]
+    cells = np.array(list(itertools.product(range(n_side), range(n_side), range(layers))), float)
+    pos = (cells + 0.5) * spacing + rng.uniform(-0.05, 0.05, size=cells.shape)
+    pos[:, 2] += 0.05
+    n = len(pos)
+    kinds = rng.choice(3, size=n, p=[0.7, 0.2, 0.1]) if mixed else np.zeros(n, np.int64)
+    box = max(n_side * spacing, 4.3)
+    return make_state(shapes, kinds, Box.square(box).wrap(pos), random_quaternions(n, rng), box=box)
+
+
+def test_verlet_skin_gives_the_same_contacts_as_skin_zero(rng):
+    state = dense_lattice(rng, n_side=7, layers=3)
+    verlet = Detector(skin=0.06)
+    previous = None
+    steps = 40
+    n_contacts = []
+    for _ in range(steps):
+        state.position = state.box.wrap(state.position + rng.normal(scale=0.004, size=state.position.shape))
+        turn = [quat_from_axis_angle(rng.normal(size=3), rng.normal(scale=0.01)) for _ in range(state.n)]
+        state.quaternion = np.array([then(q, t) for q, t in zip(state.quaternion, turn)])
+        ref = detect(state, ALERT, previous)
+        got = verlet.detect(state, ALERT, previous)
+        for name in ("body_i", "body_j", "shift", "normal", "ctype", "point_start", "point", "gap"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+        assert verlet.n_tested <= verlet.n_candidates
+        n_contacts.append(ref.n_manifolds)
+        previous = ref
+    assert min(n_contacts) > state.n  # a dense configuration
+    assert 2 <= verlet.n_builds < steps // 2  # the list was reused, and rebuilt when grains moved
+
+
+# ---------------------------------------------------------------------------------------------
+# contact types from the rank of the manifold
+
+
+def _one_manifold(points, normal) -> ContactSet:
+    points = np.asarray(points, float).reshape(-1, 3)
+    k = len(points)
+    return ContactSet(body_i=np.zeros(1, np.int64), body_j=np.ones(1, np.int64), shift=np.zeros((1, 3)),
+                      normal=np.asarray(normal, float).reshape(1, 3), ctype=np.zeros(1, np.int64),
+                      point_start=np.array([0, k], np.int64), point=points, gap=np.zeros(k))
+
+
+def _tangent_frame(normal):
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    t = np.cross(n, [0.3, 0.5, 0.7])
+    t /= np.linalg.norm(t)
+    return n, t, np.cross(n, t)
+
+
+@pytest.mark.parametrize("normal", [(0.0, 0.0, 1.0), (1.0, 0.0, 0.0), (0.3, -0.8, 0.5)])
+def test_contact_types_of_hand_built_manifolds(normal):
+    n, t, s = _tangent_frame(normal)
+    c = np.array([1.0, 2.0, 3.0])
+    eps = 1e-3
+    cases = [
+        ([c], SIMPLE),  # one point
+        ([c, c + 0.2 * t], DOUBLE),  # segment
+        ([c, c + 0.1 * t, c + 0.2 * t], DOUBLE),  # collinear points
+        ([c + 0.1 * a * t + 0.1 * b * s for a in (-1, 1) for b in (-1, 1)], TRIPLE),  # square
+        ([c, c + 0.2 * t, c + 0.1 * t + 0.05 * s], TRIPLE),  # triangle
+        ([c, c + 0.3 * n], SIMPLE),  # spread only along the normal: one point in the tangent plane
+        ([c, c + 2e-4 * t, c + 2e-4 * s], SIMPLE),  # within the tolerance
+        ([c, c + 0.2 * t, c + 0.2 * t + 2e-4 * s, c + 2e-4 * s], DOUBLE),  # a thin sliver
+        ([c + 0.1 * a * t + 0.1 * b * s + 0.01 * a * n for a in (-1, 1) for b in (-1, 1)], TRIPLE),  # tilted
+    ]
+    for pts, expected in cases:
+        assert contact_types(_one_manifold(pts, n), eps)[0] == expected, (pts, expected)
+
+
+def test_contact_types_with_a_mask_and_consistency_with_detection(rng):
+    n, t, s = _tangent_frame((0.0, 0.0, 1.0))
+    pts = [np.zeros(3), 0.2 * t, 0.2 * s, 0.2 * (t + s)]
+    cs = _one_manifold(pts, n)
+    cs.gap = np.array([0.0, 0.0, 0.01, 0.01])
+    assert contact_types(cs, 1e-3, mask=cs.gap <= 1e-3)[0] == DOUBLE
+    assert contact_types(cs, 1e-3, mask=np.array([True, False, False, False]))[0] == SIMPLE
+    assert contact_types(cs, 1e-3, mask=np.zeros(4, bool))[0] == 0
+    assert contact_types(cs, 1e-3)[0] == TRIPLE
+    with pytest.raises(ValueError, match="one entry per point"):
+        contact_types(cs, 1e-3, mask=np.ones(3, bool))
+    # detection's ctype is the rank of all its points
+    state = dense_lattice(rng, n_side=5, layers=2)
+    det = detect(state, ALERT)
+    np.testing.assert_array_equal(contact_types(det, 1e-3 / 3.0), det.ctype)
+
+
+@pytest.mark.parametrize("tilt", [0.002, 0.01])
+def test_slightly_tilted_face_on_face_is_still_triple(tilt):
+    shapes, pos, quat = face_face_pair(gap=0.002)
+    # rotate the upper grain about a horizontal axis through its contact face centre
+    r = quat_from_axis_angle([1.0, 0.3, 0.0], tilt)
+    contact = pos[1] + quat_to_matrix(quat[1]) @ shapes[1].vertices[shapes[1].faces[largest_face(shapes[1])]].mean(0)
+    pos[1] = contact + quat_to_matrix(r) @ (pos[1] - contact)
+    quat[1] = then(quat[1], r)
+    m = pair_manifold(detect(make_state(shapes, [0, 1], pos, quat), ALERT))
+    assert m["ctype"] == TRIPLE and len(m["gaps"]) >= 3
+    assert np.ptp(m["gaps"]) > 0.0  # the gaps differ along the tilt
+    assert np.all(m["gaps"] <= ALERT)

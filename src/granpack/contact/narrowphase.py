@@ -584,6 +584,9 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp
                 o0, o1, o2 = _AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE
             else:
                 o0, o1, o2 = _AXIS_EDGE, first_face, second_face
+    W, ia, ib, lam, tmp, _, _, _ = scr
+    gjk_done = False
+    st, dist, px, py, pz, qx, qy, qz = 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for c in range(3):
         which = o0 if c == 0 else (o1 if c == 1 else o2)
         if which == _AXIS_FACE_A:
@@ -617,6 +620,21 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp
                 _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B,
                                pts[cnt:], gp[cnt:])
                 return cnt + 1, nx, ny, nz
+            if sigma > 0.0 and cnt < pts.shape[0]:
+                # separated, but the closest points lie outside the overlap of the two faces (e.g.
+                # nearly parallel faces, a corner of the incident face hanging over the reference
+                # face's edge): keep the face manifold if it is within eps_f of the exact distance,
+                # and add the exact closest-point pair so that the smallest gap is the distance
+                if not gjk_done:
+                    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert,
+                                                                    W, ia, ib, lam, tmp)
+                    gjk_done = True
+                if st == 0 and dist <= alert and gmin - dist <= eps_f:
+                    if gmin - dist <= tol_x:
+                        return cnt, nx, ny, nz
+                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz)
+                    gp[cnt] = dist
+                    return cnt + 1, nx, ny, nz
         else:
             if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
                              edge_start[kb + 1], edges, ex, ey, ez, se, pts, gp) == 1:
