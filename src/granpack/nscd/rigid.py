@@ -44,7 +44,7 @@ from granpack._numba import jit
 from granpack.rotations import quat_integrate_body_nb, quat_to_matrix_nb
 from granpack.state import ParticleState
 
-__all__ = ["world_inverse_inertia", "kinetic_energy", "potential_energy", "total_energy"]
+__all__ = ["world_inverse_inertia", "required_alert", "kinetic_energy", "potential_energy", "total_energy"]
 
 
 @jit
@@ -170,6 +170,36 @@ def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, pos
         y = position[p, 1] - ly * np.floor(position[p, 1] / ly)
         position[p, 0] = x if x < lx else 0.0
         position[p, 1] = y if y < ly else 0.0
+
+
+def required_alert(state: ParticleState, time_step: float, minimum: float = 0.0) -> float:
+    """Smallest alert distance that cannot miss a contact over the next step, d.
+
+    A pair is detected at the predicted configuration of a step when its gap is at most the
+    alert ``a``; it must not close a gap larger than ``a`` before the next detection, one step
+    later. The surface points of body p move at most ``|v_p| + r_p |ω_p|`` (``r_p`` the
+    circumscribed radius), two bodies approach at most twice the largest such speed, and gravity
+    adds at most ``g h`` to the speed over the step (toward the wall), so
+
+    .. math:: a \\ge 2 h \\max_p (|v_p| + r_p |ω_p|) + g h^2
+
+    (g = 1). Velocities change during the step through contacts, but contacts only slow
+    approaches down, so the bound holds for free grains; callers should add a margin (e.g. take
+    ``minimum`` = 0.02 d) and refresh it every step or every few steps.
+
+    Args:
+        state: the bodies (velocities at the start of the step).
+        time_step: h, sqrt(d/g).
+        minimum: returned when larger, d.
+
+    Returns:
+        The alert distance, d.
+    """
+    if state.n == 0:
+        return float(minimum)
+    speed = np.linalg.norm(state.velocity, axis=1) + state.radius * np.linalg.norm(state.omega, axis=1)
+    h = float(time_step)
+    return float(max(minimum, 2.0 * h * float(speed.max()) + h * h))
 
 
 def kinetic_energy(state: ParticleState) -> float:
