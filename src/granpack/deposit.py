@@ -24,7 +24,8 @@ step are the active set of the non-negative least squares solution of that equat
 drops the supports with negative multipliers. Touching the floor ends the drop. Contacts along
 the arcs are exact (closed form); a final position overlapping anything by more than
 ``1e-9 d`` (d the largest diameter) is rejected and the sphere is dropped again at a new
-``(x, y)``. Bulk solid fraction of a monodisperse deposit: about 0.58 (tests/test_deposit.py).
+``(x, y)``. Bulk solid fraction of a monodisperse deposit in a periodic column: 0.581
+(Visscher & Bolsterli: 0.582; see tests/test_deposit.py).
 
 ``method="lmgc"`` (PHYSICS §4.3, LMGC90 ``depositInBox3D``): each sphere goes to the lowest
 position touching three supports (sphere + plane + plane, sphere + sphere + plane or three
