@@ -18,10 +18,6 @@ from granpack.shapes import ShapeError
 app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dense random packings of rigid grains (NSCD).")
 
 
-def _not_yet(what: str) -> None:
-    raise InputError(f"'{what}' is not available yet in this version of granpack")
-
-
 @app.command()
 def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None:
     """Validate CONFIG and print the mixture table."""
@@ -57,8 +53,35 @@ def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None
 
 @app.command()
 def demo(out: Path = typer.Option(Path("granpack-demo"), "--out", help="Output folder.")) -> None:
-    """A small complete packing (about 300 isometric pinacoids), settled and analysed."""
-    _not_yet("demo")
+    """A small complete packing (about 300 isometric pinacoids), poured, settled and analysed."""
+    from importlib.resources import files
+
+    from granpack.config import load_config_dict
+
+    import tomllib
+
+    text = files("granpack").joinpath("data/demo.toml").read_text(encoding="utf-8")
+    config = load_config_dict(tomllib.loads(text), source="demo.toml")
+    typer.echo(f"granpack demo: {config.n_particles} isometric pinacoids in a {config.lateral_size:g} d x "
+               f"{config.lateral_size:g} d periodic cell -> {out}/")
+    _run_and_report(config, out, resume=False)
+    analyze(out)
+    typer.echo(f"files: {out / 'final.gsd'} (OVITO), {out / 'summary.json'}, {out / 'analysis.json'}; "
+               f"ParaView: granpack export {out} --format vtk; figures: granpack figures {out}")
+
+
+def _run_and_report(config, out: Path, resume: bool) -> dict:
+    from granpack.simulation import run_packing
+
+    summary = run_packing(config, out, resume=resume, progress=sys.stderr.isatty())
+    eq = summary["equilibrium"]
+    typer.echo(
+        f"{summary['status']} after {summary['simulated_time']:.2f} sqrt(d/g) ({summary['steps']} steps, "
+        f"{summary['wall_time']:.0f} s); NLGS {summary['nlgs']['mean_iterations']:.0f} sweeps/step; "
+        f"max |F|/(d^2 P) {eq['max_net_force']:.1e}, wall force / weight {eq['wall_force_over_weight']:.6f}, "
+        f"max overlap {summary['final']['max_overlap']:.1e} d"
+    )
+    return summary
 
 
 @app.command()
@@ -68,8 +91,14 @@ def run(
     resume: bool = typer.Option(False, "--resume", help="Continue from the last checkpoint."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
 ) -> None:
-    """One packing to equilibrium."""
-    _not_yet("run")
+    """One packing to equilibrium: writes OUT/config.toml, final.gsd, summary.json (and checkpoints)."""
+    from granpack.config import load_config
+
+    cfg = load_config(config)
+    if seed is not None:
+        cfg = cfg.with_seed(seed)
+    _run_and_report(cfg, out, resume=resume)
+    typer.echo(f"files: {out / 'final.gsd'}, {out / 'summary.json'}; next: granpack analyze {out}")
 
 
 @app.command()

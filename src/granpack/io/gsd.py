@@ -42,7 +42,7 @@ from granpack.packing import Packing
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeTable, Sphere
 from granpack.state import ParticleState
 
-__all__ = ["write_packing", "read_packing", "shape_spec", "shape_from_spec"]
+__all__ = ["write_packing", "append_frame", "truncate_frames", "read_packing", "shape_spec", "shape_from_spec"]
 
 #: version of the layout above, stored in ``log/granpack/format``
 FORMAT_VERSION = 1
@@ -163,6 +163,39 @@ def write_packing(path: str | os.PathLike, packing: Packing) -> Path:
             os.unlink(tmp)
         raise
     return path
+
+
+def append_frame(path: str | os.PathLike, packing: Packing) -> Path:
+    """Append ``packing`` as one more frame of the trajectory ``path`` (created if missing).
+
+    Frames are self-contained (same layout as :func:`write_packing`); OVITO plays them as an
+    animation and :func:`read_packing` reads the last one.
+    """
+    path = Path(path)
+    with gsd.hoomd.open(path, mode="a" if path.is_file() else "w") as traj:
+        traj.append(_frame(packing))
+    return path
+
+
+def truncate_frames(path: str | os.PathLike, last_step: int) -> None:
+    """Keep only the frames of the trajectory ``path`` whose step is at most ``last_step``
+    (rewritten atomically; used when a run resumes from an earlier checkpoint)."""
+    path = Path(path)
+    if not path.is_file():
+        return
+    with gsd.hoomd.open(path, mode="r") as traj:
+        frames = [f for f in traj if int(f.configuration.step) <= last_step]
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        with gsd.hoomd.open(tmp, mode="w") as out:
+            for f in frames:
+                out.append(f)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
 
 
 def read_packing(path: str | os.PathLike) -> Packing:

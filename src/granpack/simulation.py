@@ -1,0 +1,368 @@
+"""The packing protocol: pluviation, NSCD settling to equilibrium, checkpoints, outputs.
+
+:func:`run_packing` is the whole of ``granpack run`` (PHYSICS.md §4):
+
+1. grains get their population (shuffled, :mod:`granpack.mixture`), a random orientation and
+   their circumscribed sphere (the shell); the shells are deposited one by one
+   (:mod:`granpack.deposit`, lateral walls or periodic as configured); the walls then give way to
+   the periodic cell (the centres are already inside it);
+2. the grains replace the shells, at rest, and the Moreau–Jean scheme (:mod:`granpack.nscd`)
+   advances them under gravity until the equilibrium criteria (PHYSICS.md §5b,
+   :mod:`granpack.equilibrium`) hold at ``window`` consecutive checks (one every
+   ``check_interval``), or until ``max_time``: the run then ends with status ``"not at rest"``
+   and its figures, not an error.
+
+Alert distance. Contacts are detected on the predicted configuration of each step; a pair must
+be a candidate before it can close. During the pour grains fall at several sqrt(g d), more than
+the configured alert distance per step, so the alert distance of a step is raised to cover the
+largest closing speed (PHYSICS.md §2.11):
+
+.. math:: a_n = \\max\\big(a, \\; 2 \\cdot 2 h \\max_p (|v_p| + R_p |ω_p|)\\big)
+
+(two bodies approaching, a factor 2 of margin for the acceleration over the step), rounded up to
+``a 2^k`` so that the Verlet list is rebuilt only when the level changes.
+
+Outputs in ``out_dir`` (all written to a temporary name and renamed):
+``config.toml`` (resolved), ``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at
+the end), ``trajectory.gsd`` (a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``
+and ``summary.json``. A killed run resumed with ``resume=True`` continues from its checkpoint
+and ends with the same packing, bit for bit, as an uninterrupted run: the checkpoint holds the
+exact double-precision state, the contacts that warm-start the next step, and the loop counters.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from granpack.box import Box
+from granpack.config import RunConfig
+from granpack.contact import ContactSet, Detector
+from granpack.deposit import deposit
+from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
+from granpack.errors import InputError
+from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
+from granpack.io.json import read_json, write_json
+from granpack.mixture import Mixture
+from granpack.nscd import StepParameters, advance, kinetic_energy, predict
+from granpack.packing import Packing
+from granpack.rotations import random_quaternions
+from granpack.state import ParticleState
+
+__all__ = ["run_packing", "initial_state", "step_parameters", "criteria_of", "step_alert",
+           "STATUS_AT_REST", "STATUS_NOT_AT_REST", "CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE",
+           "SUMMARY_FILE", "TRAJECTORY_FILE"]
+
+STATUS_AT_REST = "equilibrium"
+STATUS_NOT_AT_REST = "not at rest"
+CONFIG_FILE = "config.toml"
+CHECKPOINT_FILE = "checkpoint.gsd"
+FINAL_FILE = "final.gsd"
+SUMMARY_FILE = "summary.json"
+TRAJECTORY_FILE = "trajectory.gsd"
+
+#: Verlet skin of the broad phase, as a fraction of the smallest grain size
+_SKIN_FRACTION = 0.1
+#: safety factor on the distance closed in one step (see the module docstring)
+_ALERT_MARGIN = 2.0
+
+
+@dataclass
+class _Counters:
+    """Loop state that a checkpoint carries (everything but the particles and contacts)."""
+
+    step: int = 0
+    passes: int = 0  # consecutive equilibrium checks passed
+    iterations_total: int = 0
+    iterations_max: int = 0
+    unconverged_steps: int = 0
+    point_updates: int = 0
+    max_overlap: float = 0.0
+    correction_steps: int = 0
+    correction_energy: float = 0.0
+    detection_seconds: float = 0.0
+    solver_seconds: float = 0.0
+    deposit_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    last_report: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+def step_parameters(config: RunConfig) -> StepParameters:
+    """The NSCD settings of a run config."""
+    s = config.solver
+    return StepParameters(
+        time_step=s.time_step, theta=s.theta, friction=s.friction, restitution=s.restitution,
+        tolerance=s.tolerance, max_iterations=s.max_iterations, check_every=s.check_every,
+        alert=config.resolved_alert_distance,
+    )
+
+
+def criteria_of(config: RunConfig) -> EquilibriumCriteria:
+    """The equilibrium tolerances of a run config."""
+    e = config.equilibrium
+    return EquilibriumCriteria(force=e.force_tolerance, torque=e.torque_tolerance,
+                               kinetic_energy=e.kinetic_tolerance, wall=e.wall_tolerance)
+
+
+def step_alert(state: ParticleState, base: float, time_step: float, ceiling: float) -> float:
+    """Alert distance of the next step, d: ``base 2^k`` covering twice the distance two grains
+    can close in one step (module docstring), at most ``ceiling``."""
+    speed = np.sqrt(np.sum(state.velocity**2, axis=1)) + state.radius * np.sqrt(np.sum(state.omega**2, axis=1))
+    need = _ALERT_MARGIN * 2.0 * time_step * float(speed.max()) if state.n else 0.0
+    if need <= base:
+        return base
+    level = base * 2.0 ** math.ceil(math.log2(need / base))
+    return min(level, ceiling)
+
+
+def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleState, Mixture]:
+    """Pluviation: shuffled populations, deposited shells, random orientations, grains at rest.
+
+    The random stream of ``config.seed`` draws, in order, the population order, the deposit's
+    release points and the orientations, so a seed gives one packing.
+    """
+    mixture = Mixture.from_config(config)
+    shapes = mixture.particle_shape_table()
+    rng = np.random.default_rng(config.seed)
+    population = mixture.particle_populations(rng)
+    radii = shapes.radius[population]
+    centres = deposit(radii, config.lateral_size, rng, lateral=config.deposit.lateral,
+                      method=config.deposit.method, progress=progress)
+    quaternion = random_quaternions(len(population), rng)
+    box = Box.square(config.lateral_size)
+    state = ParticleState(box=box, shapes=shapes, kind=population, population=population,
+                          position=box.wrap(centres), quaternion=quaternion)
+    return state, mixture
+
+
+def _packing(state: ParticleState, contacts: ContactSet, config: RunConfig, mixture: Mixture, metadata: dict) -> Packing:
+    from granpack import __version__
+
+    meta = {"seed": config.seed, "version": __version__, "config": config.to_toml(), **metadata}
+    return Packing(state=state, contacts=contacts, time_step=config.solver.time_step,
+                   population_names=mixture.names, metadata=meta)
+
+
+def _write_text(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, _Counters] | None:
+    """State, warm contacts and counters of the checkpoint in ``out_dir``, or None if there is none."""
+    path = out_dir / CHECKPOINT_FILE
+    if not path.is_file():
+        return None
+    saved = read_packing(path)
+    meta = saved.metadata
+    if meta.get("config") != config.to_toml():
+        raise InputError(f"{path}: checkpoint of another config; remove it or run without --resume")
+    s = saved.state
+    state = ParticleState(box=Box.square(config.lateral_size), shapes=mixture.particle_shape_table(), kind=s.kind,
+                          population=s.population, position=s.position, quaternion=s.quaternion,
+                          velocity=s.velocity, omega=s.omega, time=s.time)
+    counters = _Counters(**meta["counters"])
+    return state, saved.contacts, counters
+
+
+def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, progress: bool = True) -> dict:
+    """Pour and settle one packing; write its files; return its summary.
+
+    Args:
+        config: the validated run config.
+        out_dir: output folder (created if needed).
+        resume: continue from ``out_dir/checkpoint.gsd`` if there is one (else start afresh);
+            a finished run (``summary.json`` and ``final.gsd`` present, same config) is returned
+            as it is.
+        progress: show progress bars (deposit, settling) on the terminal.
+
+    Returns:
+        The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
+        ``"not at rest"``), steps, simulated and wall times, NLGS statistics, the last
+        equilibrium figures and the largest overlap.
+
+    Raises:
+        InputError: ``out_dir`` cannot be created, or its checkpoint belongs to another config.
+    """
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: cannot create the folder ({exc.strerror})") from None
+    config_text = config.to_toml()
+    if resume and (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file():
+        if (out_dir / CONFIG_FILE).is_file() and (out_dir / CONFIG_FILE).read_text(encoding="utf-8") == config_text:
+            return read_json(out_dir / SUMMARY_FILE)
+    _write_text(out_dir / CONFIG_FILE, config_text)
+    for stale in (SUMMARY_FILE, FINAL_FILE):
+        (out_dir / stale).unlink(missing_ok=True)
+
+    wall_start = time.perf_counter()
+    mixture = Mixture.from_config(config)
+    resumed = _resume_from(out_dir, config, mixture) if resume else None
+    if resumed is None:
+        (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
+        (out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
+        t0 = time.perf_counter()
+        state, mixture = initial_state(config, progress=progress)
+        counters = _Counters(deposit_seconds=time.perf_counter() - t0)
+        contacts = None
+    else:
+        state, contacts, counters = resumed
+        truncate_frames(out_dir / TRAJECTORY_FILE, counters.step)
+    wall_before = counters.wall_seconds
+
+    params = step_parameters(config)
+    criteria = criteria_of(config)
+    eq = config.equilibrium
+    h = params.time_step
+    d_min = 2.0 * float(state.shapes.radius.min())
+    d_max = 2.0 * float(state.shapes.radius.max())
+    skin = _SKIN_FRACTION * d_min
+    ceiling = 0.5 * config.lateral_size - d_max - skin - 1e-9
+    detector = Detector(skin=skin)
+    n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
+    check_every = max(1, int(round(eq.check_interval / h)))
+    checkpoint_every = max(1, int(round(config.output.checkpoint_interval / h)))
+    snapshot_every = int(round(config.output.snapshot_interval / h)) if config.output.snapshot_interval > 0 else 0
+    report: EquilibriumReport | None = None
+    status = STATUS_NOT_AT_REST
+
+    def packing_now(extra: dict) -> Packing:
+        return _packing(state, contacts if contacts is not None else ContactSet.empty(), config, mixture,
+                        {"step": counters.step, "time": state.time, **extra})
+
+    bar = _SettlingProgress(progress, eq.max_time)
+    with bar:
+        while counters.step < n_steps_max:
+            alert = step_alert(state, params.alert, h, ceiling)
+            step_params = params if alert == params.alert else replace(params, alert=alert)
+            prediction = predict(state, step_params)
+            t0 = time.perf_counter()
+            detected = detector.detect(prediction.state, alert, previous=contacts)
+            t1 = time.perf_counter()
+            contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0)
+            counters.step += 1
+            counters.iterations_total += info.iterations
+            counters.iterations_max = max(counters.iterations_max, info.iterations)
+            counters.unconverged_steps += 0 if info.converged else 1
+            counters.point_updates += info.iterations * info.n_points
+            counters.max_overlap = max(counters.max_overlap, info.max_overlap)
+            counters.correction_steps += 1 if info.correction_iterations else 0
+            counters.correction_energy += info.correction_energy
+            counters.detection_seconds += info.detection_seconds
+            counters.solver_seconds += info.solver_seconds
+
+            if counters.step % check_every == 0:
+                report = check_equilibrium(state, contacts, h, criteria=criteria)
+                counters.passes = counters.passes + 1 if report.passed else 0
+                counters.last_report = report.as_dict()
+                bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window)
+                if counters.passes >= eq.window:
+                    status = STATUS_AT_REST
+                    break
+            if snapshot_every and counters.step % snapshot_every == 0:
+                append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
+            if counters.step % checkpoint_every == 0:
+                counters.wall_seconds = wall_before + time.perf_counter() - wall_start
+                write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
+
+    if report is None or counters.step % check_every != 0:
+        report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), h, criteria=criteria)
+        counters.last_report = report.as_dict()
+    counters.wall_seconds = wall_before + time.perf_counter() - wall_start
+    summary = _summary(config, state, contacts, counters, report, status)
+    write_packing(out_dir / FINAL_FILE, packing_now({"status": status, "summary": _headline(summary)}))
+    write_json(out_dir / SUMMARY_FILE, summary)
+    (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
+    return summary
+
+
+def _headline(summary: dict) -> dict:
+    return {k: summary[k] for k in ("status", "steps", "simulated_time", "wall_time")}
+
+
+def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | None, c: _Counters,
+             report: EquilibriumReport, status: str) -> dict:
+    from granpack import __version__
+
+    steps = max(c.step, 1)
+    n_points = contacts.n_points if contacts is not None else 0
+    gaps = contacts.gap if contacts is not None and n_points else np.zeros(0)
+    return {
+        "version": __version__,
+        "status": status,
+        "seed": config.seed,
+        "n_particles": state.n,
+        "steps": c.step,
+        "simulated_time": state.time,
+        "time_step": config.solver.time_step,
+        "wall_time": c.wall_seconds,
+        "timing": {
+            "deposit_seconds": c.deposit_seconds,
+            "detection_seconds": c.detection_seconds,
+            "solver_seconds": c.solver_seconds,
+            "detection_ms_per_step": 1e3 * c.detection_seconds / steps,
+            "solver_ms_per_step": 1e3 * c.solver_seconds / steps,
+            "point_updates_per_second": c.point_updates / c.solver_seconds if c.solver_seconds > 0 else None,
+        },
+        "nlgs": {
+            "mean_iterations": c.iterations_total / steps,
+            "max_iterations": c.iterations_max,
+            "unconverged_steps": c.unconverged_steps,
+            "tolerance": config.solver.tolerance,
+        },
+        "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
+        "equilibrium": report.as_dict(),
+        "final": {
+            "kinetic_energy": kinetic_energy(state),
+            "contacts": contacts.n_manifolds if contacts is not None else 0,
+            "contact_points": n_points,
+            "max_overlap": float(max(0.0, -gaps.min())) if len(gaps) else 0.0,
+            "height": float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0,
+        },
+        "max_overlap_during_run": c.max_overlap,
+    }
+
+
+class _SettlingProgress:
+    """A rich progress bar over simulated time with kinetic energy, contacts and criteria (or nothing)."""
+
+    def __init__(self, enabled: bool, max_time: float):
+        self.enabled = enabled
+        self.max_time = max_time
+        self._bar = None
+        self._task = None
+
+    def __enter__(self):
+        if self.enabled:
+            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+            self._bar = Progress(TextColumn("settling t = {task.completed:7.2f} / {task.total:g} sqrt(d/g)"), BarColumn(),
+                                 TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+            self._bar.__enter__()
+            self._task = self._bar.add_task("settling", total=self.max_time, info="")
+        return self
+
+    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int) -> None:
+        if self._bar is None:
+            return
+        flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
+                                                              ("E", report.energy_ok), ("W", report.wall_ok)))
+        info = (f"Ek {ek:.2e}  contacts {n_contacts}  |F| {report.max_net_force:.1e}  |T| {report.max_net_torque:.1e}  "
+                f"E {report.kinetic_energy:.1e}  W {report.wall_force_over_weight:.4f}  [{flags}] {passes}/{window}")
+        self._bar.update(self._task, completed=min(t, self.max_time), info=info)
+
+    def __exit__(self, *exc):
+        if self._bar is not None:
+            self._bar.__exit__(*exc)
+        return False
