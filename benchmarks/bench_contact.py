@@ -57,14 +57,14 @@ def _lattice(n: int, spacing: float, lateral: int, rng: np.random.Generator) -> 
     return (cells + 0.5) * spacing + rng.uniform(-0.05, 0.05, size=(n, 3)) * spacing
 
 
-def build_dense(n: int, small_volume_share: float, rng: np.random.Generator, sweeps: int = 25) -> ParticleState:
+def build_dense(n: int, small_volume_share: float, rng: np.random.Generator, sweeps: int = 100,
+                spacing: float = 0.66) -> ParticleState:
     """A dense heap of ``n`` isometric pinacoids (see the module docstring)."""
     large, small = Pinacoid.from_size(1.0), Pinacoid.from_size(1.0 / 3.0)
     ratio = small.volume / large.volume
     # number of large grains for the volume share: n_s ratio / (n_s ratio + n_l) = share
     n_large = int(round(n / (1.0 + small_volume_share / (1.0 - small_volume_share) / ratio))) if small_volume_share else n
     n_small = n - n_large
-    spacing = 0.62
     lateral = max(4, int(round((n_large + n_small * ratio) ** (1 / 3) * 1.0)))
     box = Box.square(lateral * spacing)
     pos_l = _lattice(n_large, spacing, lateral, rng)

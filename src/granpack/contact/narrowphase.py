@@ -140,8 +140,17 @@ def _separation(rv, a0, a1, b0, b1, ox, oy, oz, ux, uy, uz):
 
 
 @jit
-def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert):
+def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert, rin, margin):
     """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
+
+    Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
+    smallest face offset) about its centre, B likewise, so along a unit axis ``u``
+
+    .. math:: s(u) \le |u \cdot o| - \rho_A - \rho_B ,
+
+    and an axis whose bound is below the best separation found so far minus ``margin`` (the
+    hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its 16
+    projections are skipped (``rin = rho_A + rho_B``).
 
     Returns:
         ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez)``: ``far`` is True when
@@ -184,6 +193,8 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
             cx *= c
             cy *= c
             cz *= c
+            if abs(cx * ox + cy * oy + cz * oz) - rin < max(sfa, sfb, se) - margin:
+                continue
             s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, cx, cy, cz)
             if s > alert:
                 return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
@@ -542,7 +553,7 @@ def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pt
 
 
 @jit
-def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp):
+def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, scr, pts, gp):
     """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``).
 
     ``(hx, hy, hz)`` is the pair's normal at the previous step (zero if none): the separating
@@ -556,7 +567,8 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp
     _, _, _, _, _, _, buf, buf2 = scr
     a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
     far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez = _sat(
-        rv, a0, a1, b0, b1, ax, pa[a], pa[a + 1], pa[b], pa[b + 1], dr, pd[a], pd[a + 1], pd[b], pd[b + 1], ox, oy, oz, alert
+        rv, a0, a1, b0, b1, ax, pa[a], pa[a + 1], pa[b], pa[b + 1], dr, pd[a], pd[a + 1], pd[b], pd[b + 1], ox, oy, oz, alert,
+        inradius[kind[a]] + inradius[kind[b]], eps_f
     )
     if far:
         return 0, 0.0, 0.0, 0.0
@@ -786,6 +798,12 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
+    # radius of the largest centred ball inside each polyhedron kind (edge-axis pruning in _sat)
+    face_start, face_offsets = tab[1], tab[2]
+    inradius = np.zeros(len(radius))
+    for k in range(len(radius)):
+        if face_start[k + 1] > face_start[k]:
+            inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
     m = 0
     npt = 0
     tested = 0
@@ -853,7 +871,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
                     hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
                 else:
                     hx, hy, hz = 0.0, 0.0, 0.0
-                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, geo, tab, alert, eps_f, scr, pts, gp)
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
             cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt)
