@@ -146,7 +146,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
     Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
     smallest face offset) about its centre, B likewise, so along a unit axis ``u``
 
-    .. math:: s(u) \le |u \cdot o| - \rho_A - \rho_B ,
+    .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
 
     and an axis whose bound is below the best separation found so far minus ``margin`` (the
     hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its 16
