@@ -27,6 +27,20 @@ untouched, and no body is pushed further than the overlap it had (no ejection); 
 change is the potential energy ``Σ m g δz`` of lifting overlapping grains back to contact, which
 :class:`StepInfo` reports as ``correction_energy`` so that energy budgets can account for it.
 Overlaps then stay below about ``s`` (plus the detection and linearisation error).
+
+Energy (e_N = 0, μ = 0). The budget of a step is ``ΔE - correction_energy``. With θ = 1 it is
+``Σ_α r_α u^{n+1}_α - ½|ΔV|²_M <= 0`` (strictly dissipative). With θ = ½ the impulses work at
+the mean velocity, ``Σ_α r_α (u^n_α + u^{n+1}_α)/2``, and since ``u^{n+1}_α <= 0`` wherever
+``r_α > 0`` a step gains at most ``Σ_α r_α max(0, u^n_α)/2`` (a contact pushing although it was
+opening at t_n): tiny (measured <= 1e-9 of E on a pour) but not zero. Both are checked in
+tests/test_nscd_dynamics.py.
+
+Alert distance: detection sees a pair when its gap at ``TT`` is at most ``params.alert``; a gap
+larger than that must not close within one step, so the alert must exceed the largest approach
+per step, ``2 h max(|v| + r|ω|) + g h²`` (:func:`granpack.nscd.rigid.required_alert`). The
+default 0.05 d covers grains up to 5 sqrt(g d) at h = 5e-3; a pour reaching 8 sqrt(g d) needs
+0.08 d or more, otherwise a contact can appear already interpenetrating by up to the missing
+distance (IQS does not push it back; the position correction then removes it).
 """
 
 from __future__ import annotations
