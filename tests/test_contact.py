@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 
 from granpack.box import Box
@@ -731,3 +733,37 @@ def test_slightly_tilted_face_on_face_is_still_triple(tilt):
     assert m["ctype"] == TRIPLE and len(m["gaps"]) >= 3
     assert np.ptp(m["gaps"]) > 0.0  # the gaps differ along the tilt
     assert np.all(m["gaps"] <= ALERT)
+
+
+# ---------------------------------------------------------------------------------------------
+# property-based: other convex polyhedra
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    names=st.tuples(st.sampled_from(["cube", "tetrahedron", "octahedron", "pinacoid"]),
+                    st.sampled_from(["cube", "tetrahedron", "dodecahedron", "pinacoid"])),
+    seed=st.integers(0, 2**32 - 1),
+    target=st.floats(-0.03, 0.015).filter(lambda t: abs(t) > 1e-3),  # exactly touching: no direction
+)
+def test_polyhedra_gap_property(names, seed, target):
+    rng = np.random.default_rng(seed)
+    shapes = [Pinacoid.from_size(1.0, 2.0, 3.0) if n == "pinacoid" else platonic(n, 1.0) for n in names]
+    qa, qb = random_quaternions(2, rng)
+    u = rng.normal(size=3)
+    u /= np.linalg.norm(u)
+    va = world_vertices(shapes[0], qa, X0)
+    r = shapes[0].circumscribed_radius + shapes[1].circumscribed_radius
+    for _ in range(8):
+        g, direction = exact_gap(va, world_vertices(shapes[1], qb, X0 + r * u))
+        r -= (g - target) / max(u @ direction, 0.2)
+    xb = X0 + r * u
+    g, direction = exact_gap(va, world_vertices(shapes[1], qb, xb))
+    cs = Detector(eps_f=1e-9).detect(make_state(shapes, [0, 1], [X0, xb], [qa, qb]), ALERT)
+    if g > ALERT:
+        assert cs.n_manifolds == 0
+        return
+    m = pair_manifold(cs)
+    assert m["gaps"].min() == pytest.approx(g, abs=1e-9)
+    if len(m["gaps"]) == 1 and g > 0:
+        np.testing.assert_allclose(m["normal"], -direction, atol=1e-6)
