@@ -132,13 +132,18 @@ def cubic_cubes(cells_xy: int = 3, layers: int = 8):
     return Packing(state, contact_set(manifolds), H, ["cubes"], {"seed": 3}), e
 
 
-def sphere_column(side: int = 3, layers: int = 6, diameter: float = 1.0):
+def sphere_column(side: int = 3, layers: int = 6, diameter: float = 1.0, overlap: float = 0.0):
     """Simple cubic stack of spheres; vertical contacts carry the weight above, lateral ones zero force.
 
     The box side is ``side * diameter`` so lateral neighbours touch (also across the boundary).
+    With ``overlap`` (in units of ``diameter``) every vertical contact and the wall contact
+    interpenetrate by ``overlap * diameter`` (gap ``-overlap * diameter``): the centres are at
+    ``z = (1/2 - overlap + k (1 - overlap)) diameter``.
     """
     cells = np.array(list(itertools.product(range(side), range(side), range(layers))), dtype=float)
     pos = (cells + 0.5) * diameter
+    pos[:, 2] = (0.5 - overlap + cells[:, 2] * (1.0 - overlap)) * diameter
+    gap = -overlap * diameter
     n = len(pos)
     sphere = Sphere(diameter)
     state = ParticleState(
@@ -153,11 +158,12 @@ def sphere_column(side: int = 3, layers: int = 6, diameter: float = 1.0):
     m = sphere.volume
     manifolds = []
     for (ix, iy, iz), i in index.items():
+        point = pos[i] - (0, 0, (1.0 - overlap) * diameter / 2) if iz else pos[i] - (0, 0, (0.5 - overlap) * diameter)
         if iz == 0:
-            manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), points=[pos[i] - (0, 0, diameter / 2)], forces=[(0, 0, m * layers)]))
+            manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), points=[point], gaps=[gap], forces=[(0, 0, m * layers)]))
         else:
             j = index[(ix, iy, iz - 1)]
-            manifolds.append(dict(i=i, j=j, normal=(0, 0, 1), points=[pos[i] - (0, 0, diameter / 2)], forces=[(0, 0, m * (layers - iz))]))
+            manifolds.append(dict(i=i, j=j, normal=(0, 0, 1), points=[point], gaps=[gap], forces=[(0, 0, m * (layers - iz))]))
         for axis in range(2):
             other = [ix, iy, iz]
             other[axis] = (other[axis] + 1) % side
@@ -225,3 +231,42 @@ def random_pinacoids(n: int, rng, lateral: float = 8.0, height: float = 12.0, sm
         impulse=H * normal[seg] * rng.random(p)[:, None],
     )
     return Packing(state, contacts, H, ["large", "small"], {"seed": 11})
+
+
+def relabelled(packing: Packing, population, names: list[str]) -> Packing:
+    """The same grains and contacts with another population index per grain."""
+    s = packing.state
+    state = ParticleState(box=s.box, shapes=s.shapes, kind=s.kind.copy(), population=np.asarray(population, dtype=np.int64),
+                          position=s.position.copy(), quaternion=s.quaternion.copy())
+    return Packing(state, packing.contacts, packing.time_step, list(names), dict(packing.metadata))
+
+
+def points(position, lateral: float, diameter: float = 1.0) -> Packing:
+    """Spheres at arbitrary (possibly overlapping) centres, no contacts: a point set for g(r)."""
+    position = np.asarray(position, dtype=float)
+    n = len(position)
+    state = ParticleState(
+        box=Box.square(lateral),
+        shapes=ShapeTable.from_shapes([Sphere(diameter)]),
+        kind=np.zeros(n, np.int64),
+        population=np.zeros(n, np.int64),
+        position=position,
+        quaternion=identity_quaternions(n),
+    )
+    return Packing(state, ContactSet.empty(), H, ["points"], {})
+
+
+def oriented_pinacoids(quaternions, rng, lateral: float = 8.0, height: float = 8.0, family: str = "isometric") -> Packing:
+    """Pinacoids with the given orientations ``(n, 4)`` at random centres, no contacts."""
+    quaternions = np.asarray(quaternions, dtype=float)
+    n = len(quaternions)
+    pos = np.column_stack([rng.random(n) * lateral, rng.random(n) * lateral, 0.5 + rng.random(n) * (height - 1.0)])
+    state = ParticleState(
+        box=Box.square(lateral),
+        shapes=ShapeTable.from_shapes([Pinacoid.family(family, 1.0)]),
+        kind=np.zeros(n, np.int64),
+        population=np.zeros(n, np.int64),
+        position=pos,
+        quaternion=quaternions,
+    )
+    return Packing(state, ContactSet.empty(), H, [family], {})
