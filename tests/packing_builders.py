@@ -65,15 +65,15 @@ def fcc_spheres(cells_xy: int = 4, cells_z: int = 6, diameter: float = 1.0, forc
     )
     manifolds = []
     for i in range(n):
-        for j in range(i + 1, n):
-            delta = box.minimum_image(pos[i] - pos[j])
-            if abs(np.linalg.norm(delta) - diameter) < 1e-9:
-                shift = pos[i] - delta - pos[j]
-                normal = delta / diameter
-                manifolds.append(
-                    dict(i=i, j=j, shift=shift, normal=normal, points=[pos[i] - 0.5 * diameter * normal],
-                         forces=[normal * (1.0 if forces else 0.0)])
-                )
+        delta_all = box.minimum_image(pos[i] - pos[i + 1:])
+        touching = np.flatnonzero(np.abs(np.linalg.norm(delta_all, axis=1) - diameter) < 1e-9)
+        for j, delta in zip(touching + i + 1, delta_all[touching]):
+            shift = pos[i] - delta - pos[j]
+            normal = delta / diameter
+            manifolds.append(
+                dict(i=i, j=int(j), shift=shift, normal=normal, points=[pos[i] - 0.5 * diameter * normal],
+                     forces=[normal * (1.0 if forces else 0.0)])
+            )
         if pos[i, 2] < diameter:
             manifolds.append(dict(i=i, j=-1, normal=(0, 0, 1), points=[pos[i] - (0, 0, 0.5 * diameter)], forces=[(0, 0, 1.0)]))
     return Packing(state, contact_set(manifolds), H, ["spheres"], {"seed": 7}), a
