@@ -116,6 +116,8 @@ class Coordination(Compute):
             self._warn("no grain in the bulk region: coordination numbers are nan")
         elif not active.any():
             self._warn("no force-bearing contact: every bulk grain is a rattler, backbone coordination numbers are nan")
+        elif not (analysed & ~removed).any():
+            self._warn("every bulk grain is a rattler: backbone coordination numbers are nan (see with_rattlers)")
         return self._done()
 
     @result
