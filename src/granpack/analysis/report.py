@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from granpack.analysis._base import AnalysisWarning
 from granpack.analysis.coordination import Coordination
 from granpack.analysis.equilibrium import Equilibrium
 from granpack.analysis.homogeneity import Homogeneity
@@ -111,7 +112,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
     for key, obj in computed.items():
         messages += [f"{key}: {m}" for m in obj.warnings]
     for m in messages:
-        warnings.warn(m, stacklevel=2)
+        warnings.warn(m, AnalysisWarning, stacklevel=2)
 
     co, order, rdf = computed["coordination"], computed["order"], computed["pair_correlation"]
     eq, ip, hom = computed["equilibrium"], computed["interpenetration"], computed["homogeneity"]

@@ -1,0 +1,130 @@
+"""analyze_packing / analyze_run / ``granpack analyze``: the analysis.json contract and degenerate packings."""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+from packing_builders import cubic_cubes, random_pinacoids, single, sphere_column
+
+from granpack.analysis import AnalysisWarning, Equilibrium, analyze_packing, analyze_run
+from granpack.cli import main
+from granpack.errors import InputError
+from granpack.io.gsd import write_packing
+from granpack.shapes import Pinacoid, Sphere
+
+CONTRACT = {
+    "solid_fraction": {"bulk", "std", "profile_z", "profile_phi"},
+    "coordination": {"N", "Ns", "Nd", "Nt", "Nc", "rattler_fraction"},
+    "order": {"Q00", "Q22", "director"},
+    "pair_correlation": {"r", "g"},
+    "equilibrium": {"max_net_force", "max_net_torque", "kinetic_energy", "wall_force_over_weight"},
+    "interpenetration": {"max", "mean", "expansion_k"},
+    "homogeneity": {"z", "proportions"},
+}
+
+
+@pytest.mark.parametrize("layers", [1, 6])
+def test_grains_at_rest_on_the_wall_carry_their_weight(layers):
+    packing = sphere_column(3, layers) if layers > 1 else cubic_cubes(3, 1)[0]
+    eq = Equilibrium().compute(packing)
+    assert eq.figures["wall_force_over_weight"] == pytest.approx(1.0, abs=1e-12)
+    assert eq.passed and eq.warnings == []
+
+
+def test_analyze_run_writes_the_contract(tmp_path):
+    packing, _ = cubic_cubes(3, 12)
+    write_packing(tmp_path / "final.gsd", packing)
+    result = analyze_run(tmp_path)
+    data = json.loads((tmp_path / "analysis.json").read_text())
+    for key, fields in CONTRACT.items():
+        assert fields <= set(data[key]), key
+    assert {"n_particles", "populations", "seed", "version"} <= set(data)
+    assert data["n_particles"] == 108 and data["seed"] == 3
+    assert data["populations"][0]["name"] == "cubes" and data["populations"][0]["n"] == 108
+    assert data["populations"][0]["volume_fraction"] == pytest.approx(1.0)
+    # the figures of this packing: space-filling cubes with triple face contacts, loaded by their weight
+    assert data["solid_fraction"]["bulk"] == pytest.approx(1.0, abs=1e-12)
+    assert data["coordination"]["Nt"] == 6.0 and data["coordination"]["Nc"] == 18.0
+    assert data["coordination"]["rattler_fraction"] == 0.0
+    assert data["equilibrium"]["wall_force_over_weight"] == pytest.approx(1.0, abs=1e-12)
+    assert data["interpenetration"]["expansion_k"] == 0.0
+    assert data["order"]["Q00"] == pytest.approx(1.0) and data["order"]["Q22"] == pytest.approx(1.0)
+    assert len(data["order"]["director"]) == 3
+    assert len(data["pair_correlation"]["r"]) == len(data["pair_correlation"]["g"]) == 43  # r_max = half of 3 e, bins 0.02
+    assert len(data["solid_fraction"]["profile_z"]) == len(data["solid_fraction"]["profile_phi"])
+    assert data["homogeneity"]["proportions"]["cubes"][0] == pytest.approx(1.0)
+    assert data["warnings"] == [] and result["solid_fraction"]["bulk"] == data["solid_fraction"]["bulk"]
+
+
+def test_two_populations_in_the_json(tmp_path, rng):
+    packing = random_pinacoids(300, rng, lateral=5.0, height=12.0)
+    write_packing(tmp_path / "final.gsd", packing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AnalysisWarning)  # random positions: equilibrium fails, that is fine
+        analyze_run(tmp_path)
+    data = json.loads((tmp_path / "analysis.json").read_text())
+    assert [p["name"] for p in data["populations"]] == ["large", "small"]
+    assert set(data["homogeneity"]["proportions"]) == {"large", "small"}
+    assert sum(p["volume_fraction"] for p in data["populations"]) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize(
+    "packing",
+    [
+        single(Pinacoid.family("isometric"), position=(1.0, 1.0, 0.4)),
+        single(Sphere(1.0), position=(1.0, 1.0, 0.5)),
+        cubic_cubes(3, 3)[0],
+        random_pinacoids(100, np.random.default_rng(2), contacts_per_particle=0.0),
+    ],
+    ids=["one-pinacoid", "one-sphere", "too-thin", "no-contacts"],
+)
+def test_degenerate_packings_warn_and_give_nan(packing, tmp_path):
+    with pytest.warns(AnalysisWarning):
+        result = analyze_packing(packing)
+    assert result["warnings"]
+    no_bulk = packing.n_particles == 1 or packing.contacts.n_manifolds > 0  # the no-contact pile is 12 d high
+    assert math.isnan(result["solid_fraction"]["bulk"]) == no_bulk
+    assert math.isnan(result["order"]["Q00"]) == no_bulk
+    assert np.all(np.isnan(result["pair_correlation"]["g"])) == no_bulk
+    assert math.isnan(result["coordination"]["N"])
+    assert math.isnan(result["interpenetration"]["expansion_k"])
+    # still written as strict JSON (nan -> null)
+    write_packing(tmp_path / "final.gsd", packing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AnalysisWarning)
+        analyze_run(tmp_path)
+    data = json.loads((tmp_path / "analysis.json").read_text())
+    assert data["coordination"]["N"] is None
+
+
+def test_analyze_run_bad_input(tmp_path):
+    with pytest.raises(InputError, match="final.gsd"):
+        analyze_run(tmp_path)
+    with pytest.raises(InputError, match="not a run folder"):
+        analyze_run(tmp_path / "missing")
+
+
+@pytest.mark.parametrize("content", [None, b"not a gsd file\n" * 10, b""], ids=["missing", "corrupt", "empty"])
+def test_cli_analyze_bad_final_gsd_exits_2_with_one_line(tmp_path, capsys, content):
+    if content is not None:
+        (tmp_path / "final.gsd").write_bytes(content)
+    with pytest.raises(SystemExit) as exc:
+        main(["analyze", str(tmp_path)])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "final.gsd" in err
+    assert not (tmp_path / "analysis.json").exists()
+
+
+def test_cli_analyze_writes_analysis_json(tmp_path, capsys):
+    packing, _ = cubic_cubes(3, 12)
+    write_packing(tmp_path / "final.gsd", packing)
+    with pytest.raises(SystemExit) as exc:
+        main(["analyze", str(tmp_path)])
+    assert exc.value.code == 0
+    assert json.loads((tmp_path / "analysis.json").read_text())["coordination"]["Nc"] == 18.0
+    assert "solid fraction" in capsys.readouterr().out
