@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 from packing_builders import cubic_cubes, single, sphere_column
 

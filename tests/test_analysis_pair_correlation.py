@@ -10,6 +10,7 @@ import pytest
 from packing_builders import fcc_spheres, points
 
 from granpack.analysis import AnalysisWarning, NotComputedError, PairCorrelation
+from granpack.analysis.pair_correlation import ball_in_slab
 
 # FCC neighbour shells in units of the nearest-neighbour distance, with their sizes
 FCC_SHELLS = [(1.0, 12), (math.sqrt(2.0), 6), (math.sqrt(3.0), 24), (2.0, 12), (math.sqrt(5.0), 24)]
@@ -79,8 +80,6 @@ def test_untruncated_normalisation_would_be_biased(rng):
     assert np.all(np.isnan(periodic.g))
     z = packing.state.position[:, 2]
     h = z[(z >= 2.5) & (z <= 5.5)]
-    from granpack.analysis.pair_correlation import ball_in_slab
-
     edges = truncated.bin_edges
     truncated_shells = np.diff(ball_in_slab(edges[None, :], (h - 2.5)[:, None], (5.5 - h)[:, None]), axis=1).sum(axis=0)
     whole_shells = len(h) * np.diff(4.0 / 3.0 * math.pi * edges**3)
