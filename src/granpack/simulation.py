@@ -17,10 +17,10 @@ be a candidate before it can close. During the pour grains fall at several sqrt(
 the configured alert distance per step, so the alert distance of a step is raised to cover the
 largest closing speed (PHYSICS.md §2.11):
 
-.. math:: a_n = \\max\\big(a, \\; 2 \\cdot 2 h \\max_p (|v_p| + R_p |ω_p|)\\big)
+.. math:: a_n = \\max\\big(a, \\; 1.5\\,(2 h \\max_p (|v_p| + R_p |ω_p|) + g h^2)\\big)
 
-(two bodies approaching, a factor 2 of margin for the acceleration over the step), rounded up to
-``a 2^k`` so that the Verlet list is rebuilt only when the level changes.
+(two bodies approaching, see :func:`granpack.nscd.required_alert`, with a margin of 1.5), rounded
+up to ``a 2^k`` so that the Verlet list is rebuilt only when the level changes.
 
 Outputs in ``out_dir`` (all written to a temporary name and renamed):
 ``config.toml`` (resolved), ``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at
@@ -49,7 +49,7 @@ from granpack.errors import InputError
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.mixture import Mixture
-from granpack.nscd import StepParameters, advance, kinetic_energy, predict
+from granpack.nscd import StepParameters, advance, kinetic_energy, predict, required_alert
 from granpack.packing import Packing
 from granpack.rotations import random_quaternions
 from granpack.state import ParticleState
@@ -68,8 +68,8 @@ TRAJECTORY_FILE = "trajectory.gsd"
 
 #: Verlet skin of the broad phase, as a fraction of the smallest grain size
 _SKIN_FRACTION = 0.1
-#: safety factor on the distance closed in one step (see the module docstring)
-_ALERT_MARGIN = 2.0
+#: safety factor on the distance two grains can close in one step (see the module docstring)
+_ALERT_MARGIN = 1.5
 
 
 @dataclass
@@ -113,10 +113,9 @@ def criteria_of(config: RunConfig) -> EquilibriumCriteria:
 
 
 def step_alert(state: ParticleState, base: float, time_step: float, ceiling: float) -> float:
-    """Alert distance of the next step, d: ``base 2^k`` covering twice the distance two grains
-    can close in one step (module docstring), at most ``ceiling``."""
-    speed = np.sqrt(np.sum(state.velocity**2, axis=1)) + state.radius * np.sqrt(np.sum(state.omega**2, axis=1))
-    need = _ALERT_MARGIN * 2.0 * time_step * float(speed.max()) if state.n else 0.0
+    """Alert distance of the next step, d: ``base 2^k`` covering ``_ALERT_MARGIN`` times
+    :func:`~granpack.nscd.required_alert` (module docstring), at most ``ceiling``."""
+    need = _ALERT_MARGIN * required_alert(state, time_step)
     if need <= base:
         return base
     level = base * 2.0 ** math.ceil(math.log2(need / base))
