@@ -1,0 +1,196 @@
+"""The packing protocol end to end: ``run_packing`` and ``granpack run`` / ``granpack demo`` files."""
+
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import granpack.simulation as simulation
+from granpack.analysis.report import analyze_run
+from granpack.cli import main
+from granpack.config import load_config, load_config_dict
+from granpack.equilibrium import check_equilibrium
+from granpack.io.gsd import read_packing
+from granpack.io.json import read_json, to_jsonable
+from granpack.simulation import STATUS_AT_REST, STATUS_NOT_AT_REST, run_packing
+
+
+def sphere_config(n=100, max_time=30.0, seed=3, **output):
+    return load_config_dict({
+        "seed": seed,
+        "n_particles": n,
+        "lateral_size": 3.0,
+        "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}],
+        "equilibrium": {"max_time": max_time},
+        "output": {"checkpoint_interval": 0.5, **output},
+    })
+
+
+@pytest.fixture(scope="module")
+def settled(tmp_path_factory):
+    """100 spheres poured in a 3 d x 3 d cell and settled (about 10 s)."""
+    out = tmp_path_factory.mktemp("run")
+    config = sphere_config()
+    return config, run_packing(config, out, progress=False), out
+
+
+def test_small_run_reaches_certified_equilibrium(settled):
+    config, summary, out = settled
+    assert summary["status"] == STATUS_AT_REST
+    assert summary["simulated_time"] < config.equilibrium.max_time
+    eq = summary["equilibrium"]
+    assert eq["passed"] and abs(eq["wall_force_over_weight"] - 1.0) < 1e-4
+    assert eq["max_net_force"] < 1e-4 and eq["kinetic_energy"] < 1e-8
+    assert summary["final"]["max_overlap"] < 1e-4
+    assert summary["nlgs"]["mean_iterations"] > 0 and summary["steps"] == round(summary["simulated_time"] / 5e-3)
+
+
+def test_run_folder_holds_resolved_config_final_packing_and_summary(settled):
+    config, summary, out = settled
+    assert {p.name for p in out.iterdir()} == {"config.toml", "final.gsd", "summary.json"}  # checkpoint removed
+    assert load_config(out / "config.toml") == config
+    assert read_json(out / "summary.json") == to_jsonable(summary)
+    packing = read_packing(out / "final.gsd")
+    assert packing.n_particles == 100 and packing.metadata["status"] == STATUS_AT_REST
+    assert packing.metadata["seed"] == 3 and packing.population_names == ["sphere-1"]
+    state = packing.state
+    assert np.all(state.position[:, :2] >= 0) and np.all(state.position[:, :2] < 3.0)
+    assert np.all(state.position[:, 2] > 0.5 - 1e-4)  # on or above the wall
+    # the stored contacts certify the same equilibrium again
+    report = check_equilibrium(state, packing.contacts, packing.time_step)
+    assert report.passed
+    # settled, the pile is dense: 100 unit spheres (52.4 d^3) in a 9 d^2 cell would stand 10.6 d
+    # tall at a solid fraction of 0.55; the deposited shells stood about twice as high
+    assert np.max(state.position[:, 2]) < 10.6
+
+
+def test_analysis_of_a_run(settled):
+    _, _, out = settled
+    result = analyze_run(out)
+    assert result["n_particles"] == 100 and result["status"] == STATUS_AT_REST
+    assert result["equilibrium"]["wall_force_over_weight"] == pytest.approx(1.0, abs=1e-4)
+    # the 3 d cell is commensurate with unit spheres: the pile orders, but no packing of equal
+    # spheres beats the FCC density pi / sqrt(18)
+    assert 0.6 < result["solid_fraction"]["bulk"] < np.pi / np.sqrt(18.0) + 1e-3
+
+
+def test_same_seed_same_packing_other_seed_other_packing(tmp_path):
+    a = run_packing(sphere_config(n=30, max_time=1.0), tmp_path / "a", progress=False)
+    b = run_packing(sphere_config(n=30, max_time=1.0), tmp_path / "b", progress=False)
+    c = run_packing(sphere_config(n=30, max_time=1.0, seed=4), tmp_path / "c", progress=False)
+    pa, pb, pc = (read_packing(tmp_path / k / "final.gsd").state.position for k in "abc")
+    np.testing.assert_array_equal(pa, pb)
+    assert not np.array_equal(pa, pc)
+    assert a["status"] == b["status"] == c["status"] == STATUS_NOT_AT_REST  # 1 sqrt(d/g) is too short
+
+
+class Killed(BaseException):
+    """Stands for SIGKILL: nothing after it runs (not even ``except Exception`` handlers)."""
+
+
+def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
+    config = sphere_config(n=40, max_time=2.0)
+    whole = run_packing(config, tmp_path / "whole", progress=False)
+
+    calls = {"n": 0}
+    advance = simulation.advance
+
+    def dying_advance(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 250:  # after the checkpoints of steps 100 and 200
+            raise Killed
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(simulation, "advance", dying_advance)
+    out = tmp_path / "killed"
+    with pytest.raises(Killed):
+        run_packing(config, out, progress=False)
+    monkeypatch.setattr(simulation, "advance", advance)
+    assert (out / "checkpoint.gsd").is_file() and not (out / "final.gsd").exists()
+    assert read_packing(out / "checkpoint.gsd").metadata["counters"]["step"] == 200
+
+    resumed = run_packing(config, out, resume=True, progress=False)
+    a, b = read_packing(tmp_path / "whole" / "final.gsd"), read_packing(out / "final.gsd")
+    for name in ("position", "quaternion", "velocity", "omega"):
+        np.testing.assert_array_equal(getattr(a.state, name), getattr(b.state, name))
+    np.testing.assert_array_equal(a.contacts.impulse, b.contacts.impulse)
+    assert resumed["steps"] == whole["steps"] and resumed["nlgs"] == whole["nlgs"]
+    # resuming a finished run returns its summary without running again
+    assert run_packing(config, out, resume=True, progress=False) == read_json(out / "summary.json")
+
+
+def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch):
+    config = sphere_config(n=20, max_time=1.0)
+    advance = simulation.advance
+    calls = {"n": 0}
+
+    def dying_advance(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 150:
+            raise Killed
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(simulation, "advance", dying_advance)
+    with pytest.raises(Killed):
+        run_packing(config, tmp_path, progress=False)
+    monkeypatch.setattr(simulation, "advance", advance)
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(_write(tmp_path / "other.toml", sphere_config(n=20, max_time=1.0, seed=9))), "--out",
+              str(tmp_path), "--resume"])
+    assert info.value.code == 2
+
+
+def _write(path, config):
+    path.write_text(config.to_toml())
+    return path
+
+
+def test_snapshots_make_a_trajectory(tmp_path):
+    from gsd.hoomd import open as gsd_open
+
+    run_packing(sphere_config(n=20, max_time=1.0, snapshot_interval=0.25), tmp_path, progress=False)
+    with gsd_open(tmp_path / "trajectory.gsd") as traj:
+        assert [int(f.configuration.step) for f in traj] == [50, 100, 150, 200]
+        assert traj[0].particles.type_shapes == [{"type": "Sphere", "diameter": 1.0}]
+
+
+def test_pinacoids_pour_without_deep_overlaps(tmp_path):
+    """A short pour of 30 pinacoids: grains fall into contact with overlaps kept below 2e-3 d while
+    they are still moving fast (PHYSICS.md §2.5: the velocity-level law lets them creep; the
+    position correction removes them as the pile slows down)."""
+    config = load_config_dict({
+        "seed": 5, "n_particles": 30, "lateral_size": 3.0,
+        "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 1.0], "volume_fraction": 1.0}],
+        "equilibrium": {"max_time": 3.0},
+        "deposit": {"method": "lmgc", "lateral": "periodic"},
+    })
+    summary = run_packing(config, tmp_path, progress=False)
+    assert summary["status"] == STATUS_NOT_AT_REST
+    assert summary["final"]["contacts"] > 30 and summary["final"]["max_overlap"] < 2e-3
+    packing = read_packing(tmp_path / "final.gsd")
+    assert packing.state.shapes.shapes[0].gsd_shape()["type"] == "ConvexPolyhedron"
+    assert np.all(packing.state.position[:, 2] > 0.0)
+
+
+def test_cli_run_with_seed_and_bad_inputs(tmp_path, capsys):
+    config = _write(tmp_path / "c.toml", sphere_config(n=10, max_time=0.5))
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(config), "--out", str(tmp_path / "r"), "--seed", "8"])
+    assert info.value.code == 0
+    assert "not at rest after 0.50" in capsys.readouterr().out
+    assert load_config(tmp_path / "r" / "config.toml").seed == 8
+    for argv in (["run", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "x")],
+                 ["run", str(config), "--out", str(tmp_path / "y"), "--seed", "-1"]):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert err.startswith("error: ") and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_demo_config_is_the_example():
+    packaged = files("granpack").joinpath("data/demo.toml").read_text(encoding="utf-8")
+    example = (Path(__file__).parents[1] / "examples" / "demo.toml").read_text(encoding="utf-8")
+    assert packaged == example
