@@ -167,6 +167,12 @@ class SolverConfig(_Model):
         f"{AUTO_ALERT_FRACTION:g} x the largest grain size.",
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
+    overlap_slop: _Number = Field(
+        default=2e-4,
+        ge=0,
+        description="Overlap above which positions are corrected after a step (to half of it), d; "
+        "0: none (pure velocity-level law).",
+    )
 
 
 class EquilibriumConfig(_Model):

@@ -23,17 +23,10 @@ linear complementarity problem for pseudo-impulses ``p`` whose 'velocities' are 
 
 i.e. the smallest mass-weighted rigid displacements (minimum of ``½ δXᵀ M δX``) that bring every
 linearised gap to ``>= -s/2``. Only positions move: velocities, hence kinetic energy, are
-untouched by the projection itself, and no body is pushed further than the overlap it had (no
-ejection). The projection changes the potential energy by ``Σ m g δz`` (reported as
-``correction_energy``). With ``energy_neutral_correction`` (the default) every grain lifted by
-``δz_p > 0`` pays for it from its own kinetic energy,
-
-.. math:: (v_p, ω_p) \leftarrow (v_p, ω_p) \sqrt{\max(0, 1 - m_p g δz_p / E_{k,p})},
-
-so that the correction never adds mechanical energy (without it, the lift-and-fall cycles of
-slowly creeping overlaps keep a frictionless pile agitated indefinitely); the kinetic energy
-taken is reported as ``correction_damping``. Overlaps then stay below about ``s`` (plus the
-detection and linearisation error).
+untouched, and no body is pushed further than the overlap it had (no ejection); the only energy
+change is the potential energy ``Σ m g δz`` of lifting overlapping grains back to contact, which
+:class:`StepInfo` reports as ``correction_energy`` so that energy budgets can account for it.
+Overlaps then stay below about ``s`` (plus the detection and linearisation error).
 
 Energy (e_N = 0, μ = 0). The budget of a step is ``ΔE - correction_energy``. With θ = 1 it is
 ``Σ_α r_α u^{n+1}_α - ½|ΔV|²_M <= 0`` (strictly dissipative). With θ = ½ the impulses work at
@@ -83,8 +76,6 @@ class StepParameters:
         overlap_slop: overlap above which positions are corrected (corrected to half of it), d;
             ``0`` disables the correction.
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
-        energy_neutral_correction: take the potential energy added by the position correction
-            from the lifted grains' kinetic energy (module docstring).
     """
 
     time_step: float = 5e-3
@@ -97,7 +88,6 @@ class StepParameters:
     alert: float = 0.05
     overlap_slop: float = 5e-5
     warm_tolerance: float = 0.05
-    energy_neutral_correction: bool = True
 
     def __post_init__(self):
         if not self.time_step > 0:
@@ -130,7 +120,6 @@ class StepInfo:
         max_overlap: largest overlap ``max(0, -g)`` at the predicted configuration, d.
         correction_iterations: NLGS sweeps of the position correction (0 when not needed).
         correction_energy: potential energy ``Σ m g δz`` added by the position correction, m g d.
-        correction_damping: kinetic energy removed to pay for it (``energy_neutral_correction``), m g d.
         solver_seconds: assembly, warm start, solves and update, s.
         detection_seconds: contact detection, s.
     """
@@ -144,7 +133,6 @@ class StepInfo:
     max_overlap: float
     correction_iterations: int
     correction_energy: float
-    correction_damping: float
     solver_seconds: float
     detection_seconds: float
 
@@ -247,9 +235,6 @@ def advance(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
         state.position, state.quaternion, state.velocity, state.omega,
     )
-    correction_damping = 0.0
-    if correction_iterations and params.energy_neutral_correction:
-        correction_damping = _pay_for_lift(state, displacement[:-1, 2])
     state.time += h
     contacts.impulse = problem.world_impulse(impulse)
     solver_seconds = time.perf_counter() - t0
@@ -263,26 +248,9 @@ def advance(
         max_overlap=max_overlap,
         correction_iterations=correction_iterations,
         correction_energy=correction_energy,
-        correction_damping=correction_damping,
         solver_seconds=solver_seconds,
         detection_seconds=detection_seconds,
     )
-
-
-def _pay_for_lift(state: ParticleState, lift: np.ndarray) -> float:
-    """Scale the velocities of the grains lifted by ``lift`` ``(N,)`` (d) so that each loses the
-    potential energy ``m g lift`` it gained (at most all its kinetic energy); returns the energy taken."""
-    gain = state.mass * lift
-    lifted = np.nonzero(gain > 0.0)[0]
-    if not len(lifted):
-        return 0.0
-    m, inertia = state.mass[lifted], state.inertia[lifted]
-    ek = 0.5 * m * np.sum(state.velocity[lifted] ** 2, axis=1) + 0.5 * np.sum(inertia * state.omega[lifted] ** 2, axis=1)
-    taken = np.minimum(gain[lifted], ek)
-    scale = np.sqrt(np.where(ek > 0.0, 1.0 - taken / np.where(ek > 0.0, ek, 1.0), 0.0))
-    state.velocity[lifted] *= scale[:, None]
-    state.omega[lifted] *= scale[:, None]
-    return float(taken.sum())
 
 
 def step(state: ParticleState, params: StepParameters, warm: ContactSet | None = None) -> tuple[ContactSet, StepInfo]:
