@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterable, Sequence
@@ -43,6 +42,7 @@ from matplotlib.patches import Patch
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from granpack.errors import InputError
+from granpack.io.atomic import atomic_path
 from granpack.io.vtk import grain_surfaces
 from granpack.packing import Packing
 
@@ -97,12 +97,8 @@ def save_figure(fig: Figure, out_dir: Path, stem: str, formats: Sequence[str] = 
     paths = []
     for fmt in formats:
         path = out_dir / f"{stem}.{fmt}"
-        tmp = out_dir / f".{stem}.tmp.{fmt}"
-        try:
+        with atomic_path(path) as tmp:
             fig.savefig(tmp, format=fmt, dpi=150, bbox_inches="tight")
-            os.replace(tmp, path)
-        finally:
-            tmp.unlink(missing_ok=True)
         paths.append(path)
     return paths
 

@@ -46,6 +46,7 @@ from granpack.contact import ContactSet, Detector
 from granpack.deposit import deposit
 from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
 from granpack.errors import InputError
+from granpack.io.atomic import write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.mixture import Mixture
@@ -150,12 +151,6 @@ def _packing(state: ParticleState, contacts: ContactSet, config: RunConfig, mixt
                    population_names=mixture.names, metadata=meta)
 
 
-def _write_text(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, _Counters] | None:
     """State, warm contacts and counters of the checkpoint in ``out_dir``, or None if there is none."""
     path = out_dir / CHECKPOINT_FILE
@@ -201,7 +196,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     if resume and (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file():
         if (out_dir / CONFIG_FILE).is_file() and (out_dir / CONFIG_FILE).read_text(encoding="utf-8") == config_text:
             return read_json(out_dir / SUMMARY_FILE)
-    _write_text(out_dir / CONFIG_FILE, config_text)
+    write_text_atomic(out_dir / CONFIG_FILE, config_text)
     for stale in (SUMMARY_FILE, FINAL_FILE):
         (out_dir / stale).unlink(missing_ok=True)
 

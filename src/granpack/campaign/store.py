@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -33,6 +32,7 @@ import pandas as pd
 from pandas.api.types import is_numeric_dtype
 
 from granpack.campaign.spec import RunSpec
+from granpack.io.atomic import atomic_path, write_text_atomic
 
 __all__ = [
     "ANALYSIS_KEYS",
@@ -81,12 +81,6 @@ def _read_json(path: Path) -> Any:
         return None
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
-
-
 def read_analysis(run_dir: Path, seed: int | None = None) -> dict | None:
     """The run's ``analysis.json`` if it is valid, else ``None``.
 
@@ -121,7 +115,7 @@ def _task_record(run: RunSpec) -> dict:
 
 def write_task(run_dir: Path, run: RunSpec) -> None:
     """Record in ``run_dir/task.json`` the task the folder is being computed for."""
-    _write_atomic(Path(run_dir) / TASK_FILE, json.dumps(_task_record(run), indent=2, sort_keys=True))
+    write_text_atomic(Path(run_dir) / TASK_FILE, json.dumps(_task_record(run), indent=2, sort_keys=True))
 
 
 def task_matches(run_dir: Path, run: RunSpec) -> bool:
@@ -132,7 +126,7 @@ def task_matches(run_dir: Path, run: RunSpec) -> bool:
 
 def write_error(run_dir: Path, message: str) -> None:
     """Save a failure message (traceback) as ``run_dir/error.txt``."""
-    _write_atomic(Path(run_dir) / ERROR_FILE, message)
+    write_text_atomic(Path(run_dir) / ERROR_FILE, message)
 
 
 def clear_error(run_dir: Path) -> None:
@@ -281,7 +275,6 @@ def write_tables(out_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
         ("runs.parquet", lambda p: runs.to_parquet(p, index=False)),
         ("summary.csv", lambda p: summary.to_csv(p, index=False)),
     ):
-        tmp = out_dir / f".{name}.tmp"
-        write(tmp)
-        os.replace(tmp, out_dir / name)
+        with atomic_path(out_dir / name) as tmp:
+            write(tmp)
     return summary

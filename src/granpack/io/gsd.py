@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import gsd.hoomd
@@ -37,6 +36,7 @@ import numpy as np
 from granpack.box import Box
 from granpack.contact.contacts import ContactSet
 from granpack.errors import InputError
+from granpack.io.atomic import atomic_path
 from granpack.io.json import to_jsonable
 from granpack.packing import Packing
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeTable, Sphere
@@ -152,16 +152,8 @@ def write_packing(path: str | os.PathLike, packing: Packing) -> Path:
     """
     path = Path(path)
     frame = _frame(packing)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        with gsd.hoomd.open(tmp, mode="w") as traj:
-            traj.append(frame)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, gsd.hoomd.open(tmp, mode="w") as traj:
+        traj.append(frame)
     return path
 
 
@@ -185,17 +177,9 @@ def truncate_frames(path: str | os.PathLike, last_step: int) -> None:
         return
     with gsd.hoomd.open(path, mode="r") as traj:
         frames = [f for f in traj if int(f.configuration.step) <= last_step]
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        with gsd.hoomd.open(tmp, mode="w") as out:
-            for f in frames:
-                out.append(f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, gsd.hoomd.open(tmp, mode="w") as out:
+        for f in frames:
+            out.append(f)
 
 
 def read_packing(path: str | os.PathLike) -> Packing:

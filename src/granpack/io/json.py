@@ -10,12 +10,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from granpack.errors import InputError
+from granpack.io.atomic import write_text_atomic
 
 __all__ = ["to_jsonable", "write_json", "read_json"]
 
@@ -52,16 +52,7 @@ def write_json(path: str | os.PathLike, data, *, indent: int = 2) -> Path:
     """
     path = Path(path)
     text = json.dumps(to_jsonable(data), indent=indent, allow_nan=False) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_text_atomic(path, text)
 
 
 def read_json(path: str | os.PathLike):

@@ -30,6 +30,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 
+from granpack.io.atomic import atomic_path
 from granpack.packing import Packing
 from granpack.rotations import quat_to_matrix
 from granpack.shapes import ConvexPolyhedron, Shape, Sphere
@@ -154,13 +155,8 @@ def contact_counts(packing: Packing) -> np.ndarray:
 
 
 def _write(mesh: meshio.Mesh, path: Path) -> Path:
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    try:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="vtu")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return path
 
 
