@@ -158,6 +158,12 @@ class SolverConfig(_Model):
     friction: _Number = Field(default=0.0, ge=0, description="Coulomb friction coefficient mu (0: frictionless).")
     restitution: _Number = Field(default=0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
     tolerance: _Number = Field(default=1e-4, gt=0, description="NLGS convergence tolerance (LMGC90 'Quad' norm, §2.7).")
+    settling_tolerance: _Number = Field(
+        default=1e-3,
+        gt=0,
+        description="NLGS tolerance while the pile is far from rest (kinetic criterion above 100 x its bound); "
+        "the run then switches to `tolerance` for good.",
+    )
     max_iterations: int = Field(default=2000, ge=1, description="Most NLGS sweeps per time step.")
     theta: _Number = Field(default=0.5, ge=0.5, le=1, description="Theta of the Moreau-Jean scheme, in [0.5, 1].")
     alert_distance: Optional[_Number] = Field(
