@@ -194,3 +194,15 @@ def test_demo_config_is_the_example():
     packaged = files("granpack").joinpath("data/demo.toml").read_text(encoding="utf-8")
     example = (Path(__file__).parents[1] / "examples" / "demo.toml").read_text(encoding="utf-8")
     assert packaged == example
+
+
+def test_narrowest_allowed_cell_runs(tmp_path):
+    """The config allows L just above 2 (d + alert); the Verlet skin and the raised alert distance
+    must then fit in what is left (one periodic image per pair)."""
+    config = load_config_dict({
+        "n_particles": 8, "lateral_size": 2.05,
+        "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}],
+        "equilibrium": {"max_time": 1.0},
+    })
+    summary = run_packing(config, tmp_path, progress=False)
+    assert summary["steps"] == 200 and summary["final"]["max_overlap"] < 1e-4

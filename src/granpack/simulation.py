@@ -232,8 +232,9 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     h = params.time_step
     d_min = 2.0 * float(state.shapes.radius.min())
     d_max = 2.0 * float(state.shapes.radius.max())
-    skin = _SKIN_FRACTION * d_min
-    ceiling = 0.5 * config.lateral_size - d_max - skin - 1e-9
+    room = 0.5 * config.lateral_size - d_max - 1e-9  # one periodic image per pair: alert + skin < room
+    skin = max(0.0, min(_SKIN_FRACTION * d_min, room - params.alert))
+    ceiling = max(params.alert, room - skin)
     detector = Detector(skin=skin)
     n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
     check_every = max(1, int(round(eq.check_interval / h)))
