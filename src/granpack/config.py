@@ -174,10 +174,11 @@ class SolverConfig(_Model):
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
     overlap_slop: _Number = Field(
-        default=2e-4,
+        default=5e-3,
         ge=0,
         description="Overlap above which positions are corrected after a step (to half of it), d; "
-        "0: none (pure velocity-level law).",
+        "0: none (pure velocity-level law, as LMGC90). A safety net against the rare deep overlaps of "
+        "violent impacts: a small value makes the correction act every step and keeps a pile agitated.",
     )
 
 
