@@ -24,7 +24,7 @@ TINY = textwrap.dedent(
     n_particles = 150
     lateral_size = 3.0
     [base.equilibrium]
-    max_time = 5.0
+    max_time = 15.0
 
     [[mixtures]]
     name = "mono"
@@ -74,7 +74,7 @@ def test_spec_runs_seeds_folders_and_overrides():
     bi = spec.runs[2].config
     assert bi["lateral_size"] == 2.5 and bi["n_particles"] == 150
     assert bi["equilibrium"] == {"max_time": 6.0}
-    assert spec.runs[0].config["lateral_size"] == 3.0 and spec.runs[0].config["equilibrium"] == {"max_time": 5.0}
+    assert spec.runs[0].config["lateral_size"] == 3.0 and spec.runs[0].config["equilibrium"] == {"max_time": 15.0}
     assert spec.runs[2].family == "spheres" and spec.runs[2].share == 0.3 and spec.runs[2].shapes == "sphere"
 
 
