@@ -5,7 +5,8 @@ Runs ``granpack.simulation.run_packing`` then the analysis on
 - ``mono``: N monodisperse spheres (default 1000, L = 8 d): bulk solid fraction (2 d above the
   wall, 2 d below the free surface) expected in [0.630, 0.645] (random close packing, 0.636-0.640
   in the literature) and coordination about 6 once rattlers are removed (isostatic);
-- ``bidisperse``: N spheres of sizes d and d/3 with 30 % small by volume (default 3000, L = 8 d):
+- ``bidisperse``: N spheres of sizes d and d/3 with 30 % small by volume (default 3000, L = 4 d:
+  the small spheres are 92 % of the grains, so an 8 d cell would leave a column 4 d tall, no bulk):
   expected about 0.72 (0.7207 molecular dynamics, Roux & Chareyre 2007; 0.72-0.73 literature);
 - ``mono-friction``: the monodisperse case with mu = 0.3, which must be looser.
 
@@ -29,12 +30,13 @@ from granpack.config import load_config_dict
 from granpack.simulation import run_packing
 
 CASES = {
-    "mono": {"populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}], "friction": 0.0, "n": 1000},
+    "mono": {"populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}], "friction": 0.0, "n": 1000,
+             "lateral": 8.0},
     "mono-friction": {"populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}], "friction": 0.3,
-                      "n": 1000},
+                      "n": 1000, "lateral": 8.0},
     "bidisperse": {"populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 0.7},
                                    {"shape": "sphere", "size": 1.0 / 3.0, "volume_fraction": 0.3}],
-                   "friction": 0.0, "n": 3000},
+                   "friction": 0.0, "n": 3000, "lateral": 4.0},
 }
 
 
@@ -42,7 +44,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("case", choices=sorted(CASES))
     parser.add_argument("--n", type=int, default=None, help="number of spheres (default: the case's)")
-    parser.add_argument("--lateral", type=float, default=8.0, help="cell side, d")
+    parser.add_argument("--lateral", type=float, default=None, help="cell side, d (default: the case's)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--max-time", type=float, default=200.0)
     parser.add_argument("--out", type=Path, default=Path("runs/validate"))
@@ -52,7 +54,7 @@ def main() -> None:
     config = load_config_dict({
         "seed": args.seed,
         "n_particles": args.n or case["n"],
-        "lateral_size": args.lateral,
+        "lateral_size": args.lateral or case["lateral"],
         "populations": case["populations"],
         "solver": {"friction": case["friction"]},
         "equilibrium": {"max_time": args.max_time},
@@ -65,7 +67,7 @@ def main() -> None:
     print(json.dumps({
         "case": args.case,
         "n_particles": config.n_particles,
-        "lateral_size": args.lateral,
+        "lateral_size": config.lateral_size,
         "seed": args.seed,
         "friction": case["friction"],
         "status": summary["status"],
