@@ -135,10 +135,12 @@ def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch):
     with pytest.raises(Killed):
         run_packing(config, tmp_path, progress=False)
     monkeypatch.setattr(simulation, "advance", advance)
+    other = _write(tmp_path.parent / f"{tmp_path.name}-other.toml", sphere_config(n=20, max_time=1.0, seed=9))
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     with pytest.raises(SystemExit) as info:
-        main(["run", str(_write(tmp_path / "other.toml", sphere_config(n=20, max_time=1.0, seed=9))), "--out",
-              str(tmp_path), "--resume"])
+        main(["run", str(other), "--out", str(tmp_path), "--resume"])
     assert info.value.code == 2
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before  # nothing touched
 
 
 def _write(path, config):

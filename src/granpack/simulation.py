@@ -206,13 +206,12 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     if resume and (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file():
         if (out_dir / CONFIG_FILE).is_file() and (out_dir / CONFIG_FILE).read_text(encoding="utf-8") == config_text:
             return read_json(out_dir / SUMMARY_FILE)
+    wall_start = time.perf_counter()
+    mixture = Mixture.from_config(config)
+    resumed = _resume_from(out_dir, config, mixture) if resume else None  # refused before anything is written
     write_text_atomic(out_dir / CONFIG_FILE, config_text)
     for stale in (SUMMARY_FILE, FINAL_FILE):
         (out_dir / stale).unlink(missing_ok=True)
-
-    wall_start = time.perf_counter()
-    mixture = Mixture.from_config(config)
-    resumed = _resume_from(out_dir, config, mixture) if resume else None
     if resumed is None:
         (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
         (out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
