@@ -180,6 +180,11 @@ class SolverConfig(_Model):
         "0: none (pure velocity-level law, as LMGC90). A safety net against the rare deep overlaps of "
         "violent impacts: a small value makes the correction act every step and keeps a pile agitated.",
     )
+    pour_overlap_slop: _Number = Field(
+        default=1e-4,
+        ge=0,
+        description="The same while grains move fast (alert distance raised above alert_distance), d.",
+    )
 
 
 class EquilibriumConfig(_Model):

@@ -18,6 +18,13 @@ fewer sweeps during the collapse); from the first check below that level on, to
 ``solver.tolerance``, and only checks made with it count towards the equilibrium window, since
 the force criteria need converged forces.
 
+Overlap correction. While grains move fast (the alert distance is raised, see below) the
+post-step projection of :mod:`granpack.nscd.integrator` removes overlaps above
+``solver.pour_overlap_slop`` (1e-4 d): impacts would otherwise leave overlaps of up to 5e-3 d that
+the velocity-level law never pushes back. Once the pile is slow it only acts above
+``solver.overlap_slop`` (5e-3 d, a safety net): acting at every step on a slow pinacoid pile, it
+moves grains that the next step moves back and keeps the pile from coming to rest.
+
 Alert distance. Contacts are detected on the predicted configuration of each step; a pair must
 be a candidate before it can close. During the pour grains fall at several sqrt(g d), more than
 the configured alert distance per step, so the alert distance of a step is raised to cover the
@@ -226,6 +233,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
     params = step_parameters(config)
     settling_tolerance = config.solver.settling_tolerance
+    pour_slop = config.solver.pour_overlap_slop
     criteria = criteria_of(config)
     eq = config.equilibrium
     h = params.time_step
@@ -251,7 +259,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         while counters.step < n_steps_max:
             alert = step_alert(state, params.alert, h, ceiling)
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
-            step_params = replace(params, alert=alert, tolerance=tolerance)
+            slop = params.overlap_slop if alert == params.alert else min(params.overlap_slop, pour_slop)
+            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop)
             prediction = predict(state, step_params)
             t0 = time.perf_counter()
             detected = detector.detect(prediction.state, alert, previous=contacts)
