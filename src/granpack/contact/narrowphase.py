@@ -707,37 +707,14 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
 
 @jit
 def _poly_sphere(a, rb, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
-    """Polyhedron ``a`` (at the origin) against sphere B (radius ``rb``, at ``o``)."""
-    pv, pf, pa, pd, rv, fn, ax, dr = geo
-    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
-    W, ia, ib, lam, tmp, idx, _, _ = scr
-    a0, a1 = pv[a], pv[a + 1]
-    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, one, 0, 1, ox, oy, oz, alert + rb, W, ia, ib, lam, tmp)
-    if st == 1:
-        return 0, 0.0, 0.0, 0.0
-    if st == 0:
-        g = dist - rb
-        if g > alert:
-            return 0, 0.0, 0.0, 0.0
-        nx, ny, nz = (qx - px) / dist, (qy - py) / dist, (qz - pz) / dist
-        pts[0, 0] = px + 0.5 * g * nx
-        pts[0, 1] = py + 0.5 * g * ny
-        pts[0, 2] = pz + 0.5 * g * nz
-        gp[0] = g
-        return 1, nx, ny, nz
-    f0 = face_start[kind[a]]
-    best = math.inf
-    fa = pf[a]
-    for f in range(pf[a], pf[a + 1]):
-        depth = face_offsets[f0 + f - pf[a]] - (fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz)
-        if depth < best:
-            best, fa = depth, f
-    nx, ny, nz = fn[fa, 0], fn[fa, 1], fn[fa, 2]
-    pts[0, 0] = ox + 0.5 * (best - rb) * nx
-    pts[0, 1] = oy + 0.5 * (best - rb) * ny
-    pts[0, 2] = oz + 0.5 * (best - rb) * nz
-    gp[0] = -(best + rb)
-    return 1, nx, ny, nz
+    """Polyhedron ``a`` (at the origin) against sphere B (radius ``rb``, at ``o``): the
+    sphere-polyhedron manifold seen from the other body (normal flipped, points moved by ``o``)."""
+    cnt, nx, ny, nz = _sphere_poly(rb, a, -ox, -oy, -oz, geo, tab, alert, scr, one, pts, gp)
+    for k in range(cnt):
+        pts[k, 0] += ox
+        pts[k, 1] += oy
+        pts[k, 2] += oz
+    return cnt, -nx, -ny, -nz
 
 
 @jit
