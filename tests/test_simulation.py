@@ -208,3 +208,25 @@ def test_narrowest_allowed_cell_runs(tmp_path):
     })
     summary = run_packing(config, tmp_path, progress=False)
     assert summary["steps"] == 200 and summary["final"]["max_overlap"] < 1e-4
+
+
+def test_demo_command_pours_settles_and_analyses(tmp_path, monkeypatch, capsys):
+    """``granpack demo`` wiring, on a shrunken demo config (the real one takes minutes)."""
+    import granpack.cli as cli
+
+    small = load_config_dict({**cli.demo_config().model_dump(), "n_particles": 40, "equilibrium": {"max_time": 2.0}})
+    monkeypatch.setattr(cli, "demo_config", lambda: small)
+    with pytest.raises(SystemExit) as info:
+        main(["demo", "--out", str(tmp_path / "demo")])
+    assert info.value.code == 0
+    printed = capsys.readouterr().out
+    assert "granpack demo: 40 isometric pinacoids" in printed and "solid fraction (bulk)" in printed
+    assert {"config.toml", "final.gsd", "summary.json", "analysis.json"} <= {p.name for p in (tmp_path / "demo").iterdir()}
+    assert read_json(tmp_path / "demo" / "analysis.json")["n_particles"] == 40
+
+
+def test_packaged_demo_config_is_valid():
+    import granpack.cli as cli
+
+    config = cli.demo_config()
+    assert config.n_particles == 300 and config.lateral_size == 3.0 and config.populations[0].shape == "pinacoid"

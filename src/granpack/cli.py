@@ -55,20 +55,24 @@ def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None
 @app.command()
 def demo(out: Path = typer.Option(Path("granpack-demo"), "--out", help="Output folder.")) -> None:
     """A small complete packing (about 300 isometric pinacoids), poured, settled and analysed."""
-    from importlib.resources import files
-
-    from granpack.config import load_config_dict
-
-    import tomllib
-
-    text = files("granpack").joinpath("data/demo.toml").read_text(encoding="utf-8")
-    config = load_config_dict(tomllib.loads(text), source="demo.toml")
+    config = demo_config()
     typer.echo(f"granpack demo: {config.n_particles} isometric pinacoids in a {config.lateral_size:g} d x "
                f"{config.lateral_size:g} d periodic cell -> {out}/")
     _run_and_report(config, out, resume=False)
     analyze(out)
     typer.echo(f"files: {out / 'final.gsd'} (OVITO), {out / 'summary.json'}, {out / 'analysis.json'}; "
                f"ParaView: granpack export {out} --format vtk; figures: granpack figures {out}")
+
+
+def demo_config():
+    """The packaged demo config (``granpack/data/demo.toml``, a copy of ``examples/demo.toml``)."""
+    import tomllib
+    from importlib.resources import files
+
+    from granpack.config import load_config_dict
+
+    text = files("granpack").joinpath("data/demo.toml").read_text(encoding="utf-8")
+    return load_config_dict(tomllib.loads(text), source="demo.toml")
 
 
 def _run_and_report(config, out: Path, resume: bool) -> dict:
