@@ -140,7 +140,7 @@ def _segment_sum(values: np.ndarray, start: np.ndarray) -> np.ndarray:
     """Sum ``values`` ``(P, k)`` over the CSR segments ``start`` ``(M+1,)``; empty segments give 0."""
     m = len(start) - 1
     seg = np.repeat(np.arange(m), np.diff(start))
-    flat = values.reshape(len(values), -1)
+    flat = values.reshape(len(values), int(np.prod(values.shape[1:])))  # also for P = 0
     out = np.zeros((m, flat.shape[1]))
     for k in range(flat.shape[1]):
         out[:, k] += np.bincount(seg, weights=flat[:, k], minlength=m)

@@ -10,9 +10,7 @@ from __future__ import annotations
 import functools
 import warnings
 
-import numpy as np
-
-__all__ = ["AnalysisWarning", "NotComputedError", "Compute", "result", "manifold_force", "manifold_normal_force", "manifold_point"]
+__all__ = ["AnalysisWarning", "NotComputedError", "Compute", "result"]
 
 
 class AnalysisWarning(UserWarning):
@@ -58,28 +56,3 @@ def result(func):
         return func(self)
 
     return property(getter)
-
-
-# Per-manifold resultants that also work without any contact point (``Packing``'s own helpers
-# cannot reshape a ``(0, 3)`` force array; an empty contact set must give empty results here).
-
-
-def manifold_force(packing) -> np.ndarray:
-    """``(M, 3)`` resultant force on body i of every manifold; zeros without contact points."""
-    if packing.contacts.n_points == 0:
-        return np.zeros((packing.contacts.n_manifolds, 3))
-    return packing.manifold_force
-
-
-def manifold_normal_force(packing) -> np.ndarray:
-    """``(M,)`` normal component of the resultant (> 0 compressive); zeros without contact points."""
-    if packing.contacts.n_points == 0:
-        return np.zeros(packing.contacts.n_manifolds)
-    return packing.manifold_normal_force
-
-
-def manifold_point(packing) -> np.ndarray:
-    """``(M, 3)`` point of application of each resultant; zeros without contact points."""
-    if packing.contacts.n_points == 0:
-        return np.zeros((packing.contacts.n_manifolds, 3))
-    return packing.manifold_point

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, manifold_normal_force, result
+from granpack.analysis._base import Compute, result
 from granpack.analysis.solid_fraction import bulk_range
 from granpack.packing import Packing
 
@@ -32,7 +32,7 @@ __all__ = ["Coordination", "force_bearing"]
 
 def force_bearing(packing: Packing, force_tol: float = 1e-9) -> np.ndarray:
     """``(M,)`` True for manifolds whose normal resultant exceeds ``force_tol`` times the mean positive one."""
-    fn = manifold_normal_force(packing)
+    fn = packing.manifold_normal_force
     positive = fn[fn > 0]
     if len(positive) == 0:
         return np.zeros(len(fn), bool)

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, manifold_force, manifold_point, result
+from granpack.analysis._base import Compute, result
 from granpack.packing import Packing
 
 __all__ = ["Interpenetration"]
@@ -68,12 +68,12 @@ class Interpenetration(Compute):
         work = np.abs(f_z) * np.abs(delta_z)
         z = state.position[:, 2]
         weight_moment = g * state.mass * z
-        fm_z = manifold_force(packing)[:, 2]
+        fm_z = packing.manifold_force[:, 2]
         love = fm_z * packing.branch_vectors()[:, 2]
 
         z0 = self.n_bottom * packing.max_size if state.n else 0.0
         point_bulk = c.point[:, 2] > z0
-        manifold_bulk = manifold_point(packing)[:, 2] > z0
+        manifold_bulk = packing.manifold_point[:, 2] > z0
         particle_bulk = z > z0
         self._k = {
             "work_column": _safe_ratio(work.sum(), weight_moment.sum()),
