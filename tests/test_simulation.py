@@ -65,6 +65,7 @@ def test_run_folder_holds_resolved_config_final_packing_and_summary(settled):
     assert np.max(state.position[:, 2]) < 10.6
 
 
+@pytest.mark.filterwarnings("ignore::granpack.analysis.AnalysisWarning")  # spheres: no orientational order
 def test_analysis_of_a_run(settled):
     _, _, out = settled
     result = analyze_run(out)
@@ -210,6 +211,7 @@ def test_narrowest_allowed_cell_runs(tmp_path):
     assert summary["steps"] == 200 and summary["final"]["max_overlap"] < 1e-4
 
 
+@pytest.mark.filterwarnings("ignore::granpack.analysis.AnalysisWarning")  # 40 grains have no bulk region
 def test_demo_command_pours_settles_and_analyses(tmp_path, monkeypatch, capsys):
     """``granpack demo`` wiring, on a shrunken demo config (the real one takes minutes)."""
     import granpack.cli as cli
