@@ -86,6 +86,10 @@ def _run_and_report(config, out: Path, resume: bool) -> dict:
         f"max |F|/(d^2 P) {eq['max_net_force']:.1e}, wall force / weight {eq['wall_force_over_weight']:.6f}, "
         f"max overlap {summary['final']['max_overlap']:.1e} d"
     )
+    failing = [name for key, name in (("force_ok", "net force"), ("torque_ok", "net torque"), ("energy_ok", "kinetic energy"),
+                                       ("wall_ok", "wall force")) if not eq.get(key)]
+    if failing:
+        typer.echo(f"criteria not met at the end: {', '.join(failing)} (values in {out / 'summary.json'}, 'equilibrium')")
     return summary
 
 
