@@ -35,7 +35,8 @@ largest closing speed (PHYSICS.md §2.11):
 (two bodies approaching, see :func:`granpack.nscd.required_alert`, with a margin of 1.5), rounded
 up to ``a 2^k`` so that the Verlet list is rebuilt only when the level changes.
 
-Outputs in ``out_dir`` (all written to a temporary name and renamed):
+Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
+grows frame by frame and is cut back to the checkpoint on resume):
 ``config.toml`` (resolved), ``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at
 the end), ``trajectory.gsd`` (a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``
 and ``summary.json``. A killed run resumed with ``resume=True`` continues from its checkpoint
