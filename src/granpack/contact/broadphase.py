@@ -47,6 +47,19 @@ def _cell_index(x, period, n, width):
 
 
 @jit
+def _periodic_window(center, k, n, out):
+    """Write the periodic cell indices ``center - k .. center + k`` (mod ``n``, each once) to
+    ``out``; returns how many."""
+    if 2 * k + 1 >= n:
+        for c in range(n):
+            out[c] = c
+        return n
+    for c in range(2 * k + 1):
+        out[c] = (center - k + c) % n
+    return 2 * k + 1
+
+
+@jit
 def candidate_pairs(position, radius, lx, ly, cutoff):
     """All pairs whose bounding spheres are closer than ``cutoff`` (nearest periodic image).
 
@@ -102,22 +115,8 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
         kx = int(math.ceil(reach / wx))
         ky = int(math.ceil(reach / wy))
         kz = int(math.ceil(reach / cell))
-        if 2 * kx + 1 >= nx:
-            ncx = nx
-            for c in range(nx):
-                colx[c] = c
-        else:
-            ncx = 2 * kx + 1
-            for c in range(ncx):
-                colx[c] = (cx[i] - kx + c) % nx
-        if 2 * ky + 1 >= ny:
-            ncy = ny
-            for c in range(ny):
-                coly[c] = c
-        else:
-            ncy = 2 * ky + 1
-            for c in range(ncy):
-                coly[c] = (cy[i] - ky + c) % ny
+        ncx = _periodic_window(cx[i], kx, nx, colx)
+        ncy = _periodic_window(cy[i], ky, ny, coly)
         z0 = max(0, cz[i] - kz)
         z1 = min(nz - 1, cz[i] + kz)
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
