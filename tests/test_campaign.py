@@ -12,8 +12,11 @@ import pandas as pd
 import pytest
 
 from granpack.campaign import campaign_from_dict, load_campaign, run_campaign
+from granpack.campaign.runner import estimated_cost, longest_first
 from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row, summary_table, write_task
 from granpack.cli import main
+from granpack.config import load_config_dict
+from granpack.mixture import Mixture
 from granpack.errors import InputError
 
 TINY = textwrap.dedent(
@@ -96,7 +99,26 @@ def test_example_campaigns_load():
         "flat-elongated": [14, 29, 50, 70, 100],
     }
     assert all(r.config["n_particles"] == 3000 for r in study.runs)
-    assert all(200 <= r.config["n_particles"] <= 1000 for r in small.runs)
+    # every small run is a column about 7 largest grains tall (at solid fraction 0.66, see the
+    # example's header): a bulk region of about 3 d_max between the 2 d_max margins of the
+    # analysis, except where the cap of 2000 grains binds (51 % and 64 % of small pinacoids)
+    for run in small.runs:
+        config = load_config_dict(run.config)
+        mixture = Mixture.from_config(config)
+        solid = float(np.sum(mixture.counts * mixture.particle_volumes))
+        height = solid / (0.66 * config.lateral_size**2) / max(p.size for p in config.populations)
+        assert 300 <= config.n_particles <= 2000
+        assert 6.5 <= height <= 8.0 or (config.n_particles == 2000 and height >= 4.5), (run.mixture, height)
+
+
+def test_longest_runs_start_first():
+    spec = campaign_from_dict(_tiny_dict())
+    costs = [estimated_cost(run) for run in spec.runs]
+    assert costs == [150 * 15, 150 * 15, 150 * 6, 150 * 6]
+    bad = dataclasses.replace(spec.runs[0], config={**spec.runs[0].config, "n_particles": -1})
+    assert estimated_cost(bad) == 0
+    ordered = longest_first([spec.runs[2], bad, spec.runs[0]])
+    assert [estimated_cost(run) for run in ordered] == [2250, 900, 0]
 
 
 @pytest.mark.parametrize(

@@ -44,6 +44,7 @@ from granpack.campaign.store import (
     write_tables,
     write_task,
 )
+from granpack.config import load_config_dict
 from granpack.errors import InputError
 
 if TYPE_CHECKING:
@@ -106,7 +107,6 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
     try:
         run_dir.mkdir(parents=True, exist_ok=True)
         from granpack.analysis.report import analyze_run
-        from granpack.config import load_config_dict
         from granpack.simulation import run_packing
 
         if task_matches(run_dir, run):
@@ -155,6 +155,22 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterato
         yield client
 
 
+def estimated_cost(run: RunSpec) -> int:
+    """Relative cost of a run: grains x settling-time cap (``n_particles * max_time``); 0 for a
+    config that does not validate (the task then fails and is reported like any other)."""
+    try:
+        config = load_config_dict(run.config, source=run.folder.as_posix())
+    except InputError:
+        return 0
+    return int(config.n_particles * config.equilibrium.max_time)
+
+
+def longest_first(runs: list[RunSpec]) -> list[RunSpec]:
+    """``runs`` by decreasing :func:`estimated_cost` (stable): the longest runs start first, so that
+    a big run does not start last and leave the other workers idle (longest-processing-time rule)."""
+    return sorted(runs, key=estimated_cost, reverse=True)
+
+
 def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
     """Submit ``todo``, retry failures once, show progress; returns (done, failed) counts."""
     attempts: dict[Path, int] = {}
@@ -163,9 +179,10 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
     def submit(run: RunSpec) -> None:
         attempts[run.folder] = attempts.get(run.folder, 0) + 1
         key = f"granpack-{run.mixture}-seed-{run.seed}-attempt-{attempts[run.folder]}"
-        active[client.submit(run_task, run, str(out_dir), key=key, pure=False)] = run
+        future = client.submit(run_task, run, str(out_dir), key=key, pure=False, priority=estimated_cost(run))
+        active[future] = run
 
-    for run in todo:
+    for run in longest_first(todo):
         submit(run)
     done = failed = 0
     columns = (
