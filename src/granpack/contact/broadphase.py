@@ -103,6 +103,18 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
         members[fill[c]] = p
         fill[c] += 1
 
+    # image index from a product: it can differ from floor(dx / lx + 0.5) only for dx within
+    # round-off of +-lx / 2, a pair farther apart than the cutoff either way
+    ilx = 1.0 / lx
+    ily = 1.0 / ly
+    # grains in cell order: the inner loop reads contiguous coordinates
+    sx = np.empty(n)
+    sy = np.empty(n)
+    sz = np.empty(n)
+    sr = np.empty(n)
+    for q in range(n):
+        p = members[q]
+        sx[q], sy[q], sz[q], sr[q] = position[p, 0], position[p, 1], position[p, 2], radius[p]
     cap = 16 * n
     lo = np.empty(cap, np.int64)
     hi = np.empty(cap, np.int64)
@@ -125,17 +137,17 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
                 for b in range(ncx):
                     c = (iz * ny + coly[a]) * nx + colx[b]
                     for q in range(cell_start[c], cell_start[c + 1]):
-                        j = members[q]
-                        rj = radius[j]
-                        if rj > ri or (rj == ri and j <= i):
+                        rj = sr[q]
+                        if rj > ri or (rj == ri and members[q] <= i):
                             continue
-                        dx = xi - position[j, 0]
-                        dy = yi - position[j, 1]
-                        dx -= lx * math.floor(dx / lx + 0.5)
-                        dy -= ly * math.floor(dy / ly + 0.5)
-                        dz = zi - position[j, 2]
+                        dx = xi - sx[q]
+                        dy = yi - sy[q]
+                        dx -= lx * math.floor(dx * ilx + 0.5)
+                        dy -= ly * math.floor(dy * ily + 0.5)
+                        dz = zi - sz[q]
                         rr = ri + rj + cutoff
                         if dx * dx + dy * dy + dz * dz < rr * rr:
+                            j = members[q]
                             if m == cap:
                                 cap *= 2
                                 lo2 = np.empty(cap, np.int64)
@@ -156,7 +168,14 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
         pair_j[fill[lo[k]]] = hi[k]
         fill[lo[k]] += 1
     for i in range(n):
-        pair_j[pair_start[i]:pair_start[i + 1]] = np.sort(pair_j[pair_start[i]:pair_start[i + 1]])
+        # insertion sort of the (short) row
+        for k in range(pair_start[i] + 1, pair_start[i + 1]):
+            v = pair_j[k]
+            r = k - 1
+            while r >= pair_start[i] and pair_j[r] > v:
+                pair_j[r + 1] = pair_j[r]
+                r -= 1
+            pair_j[r + 1] = v
     return pair_start, pair_j
 
 

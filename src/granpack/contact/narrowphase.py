@@ -124,14 +124,25 @@ def _interval(rv, v0, v1, ox, oy, oz, ux, uy, uz):
 
 
 @jit
-def _separation(rv, a0, a1, b0, b1, ox, oy, oz, ux, uy, uz):
-    """Signed separation of A (rows a0:a1) and B (o + rows b0:b1) along the line of ``u``.
+def _separation(X, na, nb, ux, uy, uz):
+    """Signed separation along the line of ``u`` of A (columns ``0:na`` of ``X``) and B (columns
+    ``na:na+nb``), vertex coordinates stored coordinate-major (``X[c, k]``) in A's frame.
 
     Returns ``(s, sign)``: ``s`` = the larger of ``min_B - max_A`` (B on the +u side, sign +1)
     and ``min_A - max_B`` (sign -1).
     """
-    loa, hia = _interval(rv, a0, a1, 0.0, 0.0, 0.0, ux, uy, uz)
-    lob, hib = _interval(rv, b0, b1, ox, oy, oz, ux, uy, uz)
+    loa = math.inf
+    hia = -math.inf
+    for k in range(na):
+        d = ux * X[0, k] + uy * X[1, k] + uz * X[2, k]
+        loa = min(loa, d)
+        hia = max(hia, d)
+    lob = math.inf
+    hib = -math.inf
+    for k in range(na, na + nb):
+        d = ux * X[0, k] + uy * X[1, k] + uz * X[2, k]
+        lob = min(lob, d)
+        hib = max(hib, d)
     s1 = lob - hia
     s2 = loa - hib
     if s1 >= s2:
@@ -140,17 +151,23 @@ def _separation(rv, a0, a1, b0, b1, ox, oy, oz, ux, uy, uz):
 
 
 @jit
-def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert, rin, margin):
+def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert, rin, margin, X):
     """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
 
+    The vertices of both bodies are first gathered into the scratch ``X`` (``(3, >= nA + nB)``,
+    B's shifted by ``o``), so every axis reads them from one small contiguous block.
+
     Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
-    smallest face offset) about its centre, B likewise, so along a unit axis ``u``
+    smallest face offset) about its centre, B likewise, so along the axis ``u = c / |c|`` of an
+    edge-direction cross product ``c``
 
     .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
 
     and an axis whose bound is below the best separation found so far minus ``margin`` (the
-    hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its 16
-    projections are skipped (``rin = rho_A + rho_B``).
+    hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its
+    projections are skipped (``rin = rho_A + rho_B``). The test is first made without the square
+    root, :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the threshold lowered
+    by 1e-12 d (round-off), so most pruned axes are never normalised.
 
     Returns:
         ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez)``: ``far`` is True when
@@ -160,27 +177,35 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
         every edge pair is parallel).
     """
     inf = math.inf
+    na = a1 - a0
+    nb = b1 - b0
+    for k in range(na):
+        X[0, k], X[1, k], X[2, k] = rv[a0 + k, 0], rv[a0 + k, 1], rv[a0 + k, 2]
+    for k in range(nb):
+        X[0, na + k], X[1, na + k], X[2, na + k] = ox + rv[b0 + k, 0], oy + rv[b0 + k, 1], oz + rv[b0 + k, 2]
     # cheap first try: the centre-to-centre direction
     dd = math.sqrt(ox * ox + oy * oy + oz * oz)
     if dd > 0.0:
-        s, _ = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ox / dd, oy / dd, oz / dd)
+        s, _ = _separation(X, na, nb, ox / dd, oy / dd, oz / dd)
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
-        s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2])
+        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
         if s > sfa:
             sfa, kfa, gfa = s, k, g
     sfb, kfb, gfb = -inf, -1, 1.0
     for k in range(ab0, ab1):
-        s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2])
+        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
         if s > sfb:
             sfb, kfb, gfb = s, k, g
     se, ie, je, ex, ey, ez = -inf, -1, -1, 0.0, 0.0, 0.0
+    # pruning threshold on |c . o| / |c|, updated when the best separation improves
+    t = max(sfa, sfb) - margin + rin - 1e-12
     for i in range(da0, da1):
         for j in range(db0, db1):
             cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
@@ -189,17 +214,19 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
             c2 = cx * cx + cy * cy + cz * cz
             if c2 < 1e-12:
                 continue
+            co = cx * ox + cy * oy + cz * oz
+            if t > 0.0 and co * co < t * t * c2:
+                continue
             c = 1.0 / math.sqrt(c2)
             cx *= c
             cy *= c
             cz *= c
-            if abs(cx * ox + cy * oy + cz * oz) - rin < max(sfa, sfb, se) - margin:
-                continue
-            s, g = _separation(rv, a0, a1, b0, b1, ox, oy, oz, cx, cy, cz)
+            s, g = _separation(X, na, nb, cx, cy, cz)
             if s > alert:
                 return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
             if s > se:
                 se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
+                t = max(sfa, sfb, se) - margin + rin - 1e-12
     return False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez
 
 
@@ -293,7 +320,7 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
 
 
 @jit
-def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx, ny, nz, se, pts, gp):
+def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx, ny, nz, se, X, h, pts, gp):
     """One point from the crossing edges that realise an edge-edge axis ``n`` (from A to B).
 
     An edge realising the separation along ``n = e_A x e_B`` is perpendicular to ``n``, so it
@@ -303,25 +330,33 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
     axis: every non-parallel pair of edges lying in the two support planes is tried and the first
     whose closest points are interior to both segments is the contact.
 
+    The vertex heights ``n . x`` are computed once into ``h`` from the vertex block ``X`` left by
+    :func:`_sat` (A's vertices, then B's shifted by ``o``).
+
     Returns the number of points written (1, or 0 when no such pair exists, e.g. when the
     closest features are not two crossing edges).
     """
-    _, topa = _interval(rv, a0, a1, 0.0, 0.0, 0.0, nx, ny, nz)
-    botb, _ = _interval(rv, b0, b1, ox, oy, oz, nx, ny, nz)
+    na = a1 - a0
+    topa = -math.inf
+    botb = math.inf
+    for k in range(na + b1 - b0):
+        h[k] = nx * X[0, k] + ny * X[1, k] + nz * X[2, k]
+        if k < na:
+            topa = max(topa, h[k])
+        else:
+            botb = min(botb, h[k])
     tol = 1e-9 * (1.0 + abs(topa) + abs(botb))
     for ea in range(ea0, ea1):
+        if h[edges[ea, 0]] < topa - tol or h[edges[ea, 1]] < topa - tol:
+            continue
         p0 = a0 + edges[ea, 0]
         p1 = a0 + edges[ea, 1]
-        if (nx * rv[p0, 0] + ny * rv[p0, 1] + nz * rv[p0, 2] < topa - tol
-                or nx * rv[p1, 0] + ny * rv[p1, 1] + nz * rv[p1, 2] < topa - tol):
-            continue
         d1x, d1y, d1z = rv[p1, 0] - rv[p0, 0], rv[p1, 1] - rv[p0, 1], rv[p1, 2] - rv[p0, 2]
         for eb in range(eb0, eb1):
+            if h[na + edges[eb, 0]] > botb + tol or h[na + edges[eb, 1]] > botb + tol:
+                continue
             q0 = b0 + edges[eb, 0]
             q1 = b0 + edges[eb, 1]
-            if (nx * (ox + rv[q0, 0]) + ny * (oy + rv[q0, 1]) + nz * (oz + rv[q0, 2]) > botb + tol
-                    or nx * (ox + rv[q1, 0]) + ny * (oy + rv[q1, 1]) + nz * (oz + rv[q1, 2]) > botb + tol):
-                continue
             d2x, d2y, d2z = rv[q1, 0] - rv[q0, 0], rv[q1, 1] - rv[q0, 1], rv[q1, 2] - rv[q0, 2]
             cx = d1y * d2z - d1z * d2y
             cy = d1z * d2x - d1x * d2z
@@ -474,7 +509,7 @@ def _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp):
     Returns ``(count, nx, ny, nz)`` with count 0 if the pair is farther than ``alert`` and -1 if
     GJK finds the bodies touching or intersecting.
     """
-    W, ia, ib, lam, tmp, idx, _, _ = scr
+    W, ia, ib, lam, tmp, idx, _, _, _, _ = scr
     st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert, W, ia, ib, lam, tmp)
     if st == 1 or (st == 0 and dist > alert):
         return 0, 0.0, 0.0, 0.0
@@ -564,11 +599,11 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, sc
     """
     pv, pf, pa, pd, rv, fn, ax, dr = geo
     vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
-    _, _, _, _, _, _, buf, buf2 = scr
+    _, _, _, _, _, _, buf, buf2, X, h = scr
     a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
     far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez = _sat(
         rv, a0, a1, b0, b1, ax, pa[a], pa[a + 1], pa[b], pa[b + 1], dr, pd[a], pd[a + 1], pd[b], pd[b + 1], ox, oy, oz, alert,
-        inradius[kind[a]] + inradius[kind[b]], eps_f
+        inradius[kind[a]] + inradius[kind[b]], eps_f, X
     )
     if far:
         return 0, 0.0, 0.0, 0.0
@@ -596,7 +631,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, sc
                 o0, o1, o2 = _AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE
             else:
                 o0, o1, o2 = _AXIS_EDGE, first_face, second_face
-    W, ia, ib, lam, tmp, _, _, _ = scr
+    W, ia, ib, lam, tmp, _, _, _, _, _ = scr
     gjk_done = False
     st, dist, px, py, pz, qx, qy, qz = 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for c in range(3):
@@ -649,7 +684,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, sc
                     return cnt + 1, nx, ny, nz
         else:
             if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
-                             edge_start[kb + 1], edges, ex, ey, ez, se, pts, gp) == 1:
+                             edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
                 return 1, ex, ey, ez
     if sigma > 0.0:
         cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
@@ -674,7 +709,7 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
     """Sphere A (radius ``ra``, at the origin) against polyhedron ``b`` (at ``o``)."""
     pv, pf, pa, pd, rv, fn, ax, dr = geo
     vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
-    W, ia, ib, lam, tmp, idx, _, _ = scr
+    W, ia, ib, lam, tmp, idx, _, _, _, _ = scr
     b0, b1 = pv[b], pv[b + 1]
     st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, rv, b0, b1, ox, oy, oz, alert + ra, W, ia, ib, lam, tmp)
     if st == 1:
@@ -770,7 +805,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
     point = np.empty((MAX_POINTS * cap, 3))
     gap = np.empty(MAX_POINTS * cap)
     scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
-           np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)))
+           np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)), np.empty((3, 2 * max_points)),
+           np.empty(2 * max_points))
     one = np.zeros((1, 3))
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
