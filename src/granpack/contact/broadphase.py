@@ -13,11 +13,14 @@ positions by the narrow phase (it changes when a grain is wrapped across the bou
 
 Grid: cells of side about ``2 R_min + cutoff`` (at least a quarter of ``2 R_max + cutoff``) in x,
 y (periodic, ``nx = floor(lx / c)`` columns) and z (non-periodic, from the lowest to the highest
-centre). Grain i searches the cells within ``2 R_i + cutoff`` and keeps the grains j that are not
-larger than itself (``R_j < R_i``, or ``R_j = R_i`` and ``j > i``), so every pair is found exactly
-once, from its larger member, and small grains of a bidisperse mix (size ratio 3 and more) only
-scan a small neighbourhood. A neighbourhood wider than the box (one or two columns) visits each
-column once, so no pair is counted twice in small boxes.
+centre). Grain i searches the cells within ``2 R_i + cutoff`` and keeps the grains j that are
+smaller than itself, so every pair of unequal grains is found once, from its larger member, and
+small grains of a bidisperse mix (size ratio 3 and more) only scan a small neighbourhood. A pair of
+equal grains is taken from the half shell: by the grain whose neighbour lies in a forward cell
+(cell offset ``(z, y, x)`` lexicographically positive), or in the same cell by the lower index;
+grains of the smallest size then skip the backward cells. A neighbourhood wider than the box (one
+or two columns) visits each column once and keeps equal grains with ``j > i``, so no pair is
+counted twice in small boxes.
 
 Verlet reuse: pairs found with a skin stay valid while every grain has moved less than half the
 skin since the list was built (displacements by minimum image).
@@ -129,17 +132,30 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
         kz = int(math.ceil(reach / cell))
         ncx = _periodic_window(cx[i], kx, nx, colx)
         ncy = _periodic_window(cy[i], ky, ny, coly)
+        # half shell: when the window does not wrap around the box, a partner of the same size is
+        # taken only from the forward cells (offset (z, y, x) > 0, or the own cell with j > i), as
+        # it finds i in its backward cells; the smallest grains skip the backward cells
+        half = 2 * kx + 1 < nx and 2 * ky + 1 < ny
         z0 = max(0, cz[i] - kz)
         z1 = min(nz - 1, cz[i] + kz)
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         for iz in range(z0, z1 + 1):
             for a in range(ncy):
                 for b in range(ncx):
+                    offset = ((iz - cz[i]) * (2 * ky + 1) + a - ky) * (2 * kx + 1) + b - kx
+                    if half and offset < 0 and ri == rmin:
+                        continue
                     c = (iz * ny + coly[a]) * nx + colx[b]
                     for q in range(cell_start[c], cell_start[c + 1]):
                         rj = sr[q]
-                        if rj > ri or (rj == ri and members[q] <= i):
+                        if rj > ri:
                             continue
+                        if rj == ri:
+                            if half:
+                                if offset < 0 or (offset == 0 and members[q] <= i):
+                                    continue
+                            elif members[q] <= i:
+                                continue
                         dx = xi - sx[q]
                         dy = yi - sy[q]
                         dx -= lx * math.floor(dx * ilx + 0.5)

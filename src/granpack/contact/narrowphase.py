@@ -287,10 +287,12 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
         sz = ex * ny - ey * nx
         so = sx * ax_ + sy * ay_ + sz * az_
         m2 = 0
+        d0 = sx * buf[0, 0] + sy * buf[0, 1] + sz * buf[0, 2] - so
+        d2 = d0
         for k in range(m):
             k2 = (k + 1) % m
-            d1 = sx * buf[k, 0] + sy * buf[k, 1] + sz * buf[k, 2] - so
-            d2 = sx * buf[k2, 0] + sy * buf[k2, 1] + sz * buf[k2, 2] - so
+            d1 = d2
+            d2 = d0 if k2 == 0 else sx * buf[k2, 0] + sy * buf[k2, 1] + sz * buf[k2, 2] - so
             if d1 <= 0.0:
                 buf2[m2, 0], buf2[m2, 1], buf2[m2, 2] = buf[k, 0], buf[k, 1], buf[k, 2]
                 m2 += 1
