@@ -20,6 +20,7 @@ from scipy.spatial import ConvexHull
 
 from granpack.box import Box
 from granpack.contact import DOUBLE, SIMPLE, TRIPLE, ContactSet, Detector, contact_types, detect
+from granpack.contact.broadphase import candidate_pairs
 from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix, random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
 from granpack.state import ParticleState
@@ -487,6 +488,27 @@ def test_box_too_small_for_one_image_is_refused():
         detect(make_state(shapes, [0, 1], pos - X0 + 1.0, quat, box=2.0), ALERT)
     with pytest.raises(ValueError, match="alert"):
         detect(make_state(shapes, [0, 1], pos, quat), -0.1)
+
+
+@pytest.mark.parametrize("sizes", [(1.0,), (1.0, 1.0 / 3.0)])
+@pytest.mark.parametrize("periods", [(2.3, 2.3), (4.1, 2.3), (7.9, 6.2)])
+def test_candidate_pairs_are_all_close_pairs_once(rng, sizes, periods):
+    """Grid search (half shell for equal grains) against all pairs, boxes narrow and wide."""
+    lx, ly = periods
+    n = 300
+    radius = 0.5 * rng.choice(sizes, size=n)
+    pos = np.c_[rng.uniform(-lx, 2 * lx, n), rng.uniform(-ly, 2 * ly, n), rng.uniform(0.0, 3.0, n)]
+    cutoff = 0.07
+    pair_start, pair_j = candidate_pairs(pos, radius, lx, ly, cutoff)
+    i, j = np.triu_indices(n, k=1)
+    d = pos[i] - pos[j]
+    d[:, 0] -= lx * np.floor(d[:, 0] / lx + 0.5)
+    d[:, 1] -= ly * np.floor(d[:, 1] / ly + 0.5)
+    close = np.einsum("ij,ij->i", d, d) < (radius[i] + radius[j] + cutoff) ** 2
+    expected = np.zeros(n + 1, np.int64)
+    np.add.at(expected, i[close] + 1, 1)
+    np.testing.assert_array_equal(pair_start, np.cumsum(expected))
+    np.testing.assert_array_equal(pair_j, j[close])  # rows sorted, each pair once
 
 
 # ---------------------------------------------------------------------------------------------
