@@ -789,3 +789,25 @@ def test_polyhedra_gap_property(names, seed, target):
     assert m["gaps"].min() == pytest.approx(g, abs=1e-9)
     if len(m["gaps"]) == 1 and g > 0:
         np.testing.assert_allclose(m["normal"], -direction, atol=1e-6)
+
+
+def test_reduce_points_keeps_the_deepest_and_the_largest_area():
+    from granpack.contact.narrowphase import _reduce_points
+
+    angles = np.arange(8) * math.pi / 4 + 0.1
+    ring = np.c_[np.cos(angles), np.sin(angles), np.full(8, 0.3)]
+    pts = np.vstack([ring, ring[5] + 1e-9])  # the last point merges into point 5
+    gp = np.array([0.01, 0.02, 0.0, -0.01, 0.015, 0.012, 0.01, 0.005, -0.02])
+    uw = np.full((len(pts), 3), np.nan)  # scratch: its content must not matter
+    kept = pts.copy()
+    kept_gaps = gp.copy()
+    cnt = _reduce_points(kept, kept_gaps, len(pts), 0.0, 0.0, 1.0, 1e-6, uw)
+    assert cnt == 4
+    rows = [int(np.argmin(np.linalg.norm(ring - p, axis=1))) for p in kept[:4]]
+    np.testing.assert_array_equal(kept[:4], ring[rows])
+    assert rows[0] == 5 and kept_gaps[0] == -0.02  # deepest point, gap of the merged duplicate
+    expected = gp[:8].copy()
+    expected[5] = -0.02
+    np.testing.assert_array_equal(kept_gaps[:4], expected[rows])
+    best = max(ConvexHull(ring[list(c), :2]).volume for c in itertools.combinations(range(8), 4))
+    assert ConvexHull(kept[:4, :2]).volume == pytest.approx(best)

@@ -235,8 +235,8 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
 
 
 @jit
-def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0, inc_f1,
-               inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
+def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0,
+               inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
     """Clip the incident face against the reference face with outward normal ``n``.
 
     The reference body has vertices ``ro + ref_rv[ref_v0:ref_v1]``, world face normals
@@ -399,11 +399,12 @@ def _line_params(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):
 
 
 @jit
-def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt):
+def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw):
     """Merge points closer than ``eps_pt`` and keep at most four that span the largest area.
 
     Order of choice: the deepest point, the farthest from it, the one maximising the triangle
     area, then the one adding the most area (all measured in the plane normal to n).
+    ``uw`` is a ``(>= cnt, 3)`` scratch (in-plane coordinates, then the kept points).
     Returns the new count; the kept points are moved to the front of ``pts``/``gp``.
     """
     m = 0
@@ -424,52 +425,48 @@ def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt):
         m += 1
     if m <= MAX_POINTS:
         return m
-    # tangent basis
+    # in-plane coordinates (u, w) on a tangent basis
     tx, ty, tz, sx, sy, sz = _tangents(nx, ny, nz)
-    u = np.empty(m)
-    w = np.empty(m)
     for k in range(m):
-        u[k] = pts[k, 0] * tx + pts[k, 1] * ty + pts[k, 2] * tz
-        w[k] = pts[k, 0] * sx + pts[k, 1] * sy + pts[k, 2] * sz
-    chosen = np.empty(MAX_POINTS, np.int64)
+        uw[k, 0] = pts[k, 0] * tx + pts[k, 1] * ty + pts[k, 2] * tz
+        uw[k, 1] = pts[k, 0] * sx + pts[k, 1] * sy + pts[k, 2] * sz
     i0 = 0
     for k in range(m):
         if gp[k] < gp[i0]:
             i0 = k
     i1, best = -1, -1.0
     for k in range(m):
-        d = (u[k] - u[i0]) ** 2 + (w[k] - w[i0]) ** 2
+        d = (uw[k, 0] - uw[i0, 0]) ** 2 + (uw[k, 1] - uw[i0, 1]) ** 2
         if k != i0 and d > best:
             i1, best = k, d
     i2, best, sgn = -1, -1.0, 1.0
     for k in range(m):
         if k == i0 or k == i1:
             continue
-        a = (u[i1] - u[i0]) * (w[k] - w[i0]) - (w[i1] - w[i0]) * (u[k] - u[i0])
+        a = (uw[i1, 0] - uw[i0, 0]) * (uw[k, 1] - uw[i0, 1]) - (uw[i1, 1] - uw[i0, 1]) * (uw[k, 0] - uw[i0, 0])
         if abs(a) > best:
             i2, best, sgn = k, abs(a), 1.0 if a >= 0.0 else -1.0
-    chosen[0], chosen[1], chosen[2] = i0, i1, i2
+    tri = (i0, i1, i2)
     i3, best = -1, -1.0
     for k in range(m):
         if k == i0 or k == i1 or k == i2:
             continue
         extra = 0.0
         for e in range(3):
-            pa = chosen[e]
-            pb = chosen[(e + 1) % 3]
-            a = sgn * ((u[pb] - u[pa]) * (w[k] - w[pa]) - (w[pb] - w[pa]) * (u[k] - u[pa]))
+            pa = tri[e]
+            pb = tri[(e + 1) % 3]
+            a = sgn * ((uw[pb, 0] - uw[pa, 0]) * (uw[k, 1] - uw[pa, 1])
+                       - (uw[pb, 1] - uw[pa, 1]) * (uw[k, 0] - uw[pa, 0]))
             extra = max(extra, -a)
         if extra > best:
             i3, best = k, extra
-    chosen[3] = i3
-    keep = np.empty((MAX_POINTS, 3))
-    kg = np.empty(MAX_POINTS)
+    chosen = (i0, i1, i2, i3)
+    g0, g1, g2, g3 = gp[i0], gp[i1], gp[i2], gp[i3]
     for c in range(MAX_POINTS):
-        keep[c, 0], keep[c, 1], keep[c, 2] = pts[chosen[c], 0], pts[chosen[c], 1], pts[chosen[c], 2]
-        kg[c] = gp[chosen[c]]
+        uw[c, 0], uw[c, 1], uw[c, 2] = pts[chosen[c], 0], pts[chosen[c], 1], pts[chosen[c], 2]
     for c in range(MAX_POINTS):
-        pts[c, 0], pts[c, 1], pts[c, 2] = keep[c, 0], keep[c, 1], keep[c, 2]
-        gp[c] = kg[c]
+        pts[c, 0], pts[c, 1], pts[c, 2] = uw[c, 0], uw[c, 1], uw[c, 2]
+    gp[0], gp[1], gp[2], gp[3] = g0, g1, g2, g3
     return MAX_POINTS
 
 
@@ -533,8 +530,10 @@ def _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp):
         cross = math.sqrt((dy * fz - dz * fy) ** 2 + (dz * fx - dx * fz) ** 2 + (dx * fy - dy * fx) ** 2) / lb
         if cross < eps_f / la:
             # parameters of B's ends along A's edge
-            tb0 = dx * (ox + rv[q0, 0] - rv[p0, 0]) + dy * (oy + rv[q0, 1] - rv[p0, 1]) + dz * (oz + rv[q0, 2] - rv[p0, 2])
-            tb1 = dx * (ox + rv[q1, 0] - rv[p0, 0]) + dy * (oy + rv[q1, 1] - rv[p0, 1]) + dz * (oz + rv[q1, 2] - rv[p0, 2])
+            tb0 = (dx * (ox + rv[q0, 0] - rv[p0, 0]) + dy * (oy + rv[q0, 1] - rv[p0, 1])
+                   + dz * (oz + rv[q0, 2] - rv[p0, 2]))
+            tb1 = (dx * (ox + rv[q1, 0] - rv[p0, 0]) + dy * (oy + rv[q1, 1] - rv[p0, 1])
+                   + dz * (oz + rv[q1, 2] - rv[p0, 2]))
             lo = max(0.0, min(tb0, tb1))
             hi = min(la, max(tb0, tb1))
             if hi - lo > eps_f and tb1 != tb0:
@@ -590,11 +589,14 @@ def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pt
 
 
 @jit
-def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, scr, pts, gp):
+def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pts, gp):
     """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``).
 
-    ``(hx, hy, hz)`` is the pair's normal at the previous step (zero if none): the separating
-    axis closest to it is tried first when it is within ``eps_f`` of the best separation.
+    ``sat`` is the :func:`_sat` result of the pair, without its leading ``far`` (the caller runs
+    the test, so that the half of the pairs it rejects cost no call here), and its vertex block
+    must still be in the scratch ``X``. ``(hx, hy, hz)`` is the pair's normal at the previous step
+    (zero if none): the separating axis closest to it is tried first when it is within ``eps_f``
+    of the best separation.
 
     Returns ``(count, nx, ny, nz)``: number of points written to ``pts`` (A-centred frame) and
     ``gp``, and the normal from A to B; count 0 means no contact within ``alert``.
@@ -603,12 +605,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, sc
     vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
     _, _, _, _, _, _, buf, buf2, X, h = scr
     a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
-    far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez = _sat(
-        rv, a0, a1, b0, b1, ax, pa[a], pa[a + 1], pa[b], pa[b + 1], dr, pd[a], pd[a + 1], pd[b], pd[b + 1], ox, oy, oz, alert,
-        inradius[kind[a]] + inradius[kind[b]], eps_f, X
-    )
-    if far:
-        return 0, 0.0, 0.0, 0.0
+    sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez = sat
     sface = max(sfa, sfb)
     sigma = max(sface, se)
     tol_x = 1e-10 * (1.0 + abs(sigma))
@@ -810,6 +807,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
            np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)), np.empty((3, 2 * max_points)),
            np.empty(2 * max_points))
     one = np.zeros((1, 3))
+    pv, pa, pd, rv, ax, dr = geo[0], geo[2], geo[3], geo[4], geo[6], geo[7]
+    X, uw = scr[8], scr[7]
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
@@ -839,7 +838,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
             else:
                 cnt = _poly_wall(i, zi, geo, alert, pts, gp)
             if cnt > 0:
-                cnt = _reduce_points(pts, gp, cnt, 0.0, 0.0, 1.0, eps_pt)
+                cnt = _reduce_points(pts, gp, cnt, 0.0, 0.0, 1.0, eps_pt, uw)
                 body_i[m], body_j[m] = i, -1
                 shift[m, 0], shift[m, 1], shift[m, 2] = 0.0, 0.0, 0.0
                 normal[m, 0], normal[m, 1], normal[m, 2] = 0.0, 0.0, 1.0
@@ -880,16 +879,20 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
             elif is_sphere[ki]:
                 cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
             else:
+                sat = _sat(rv, pv[j], pv[j + 1], pv[i], pv[i + 1], ax, pa[j], pa[j + 1], pa[i], pa[i + 1], dr, pd[j],
+                           pd[j + 1], pd[i], pd[i + 1], ox, oy, oz, alert, inradius[kj] + inradius[ki], eps_f, X)
+                if sat[0]:
+                    continue
                 while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
                     pp += 1
                 if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
                     hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
                 else:
                     hx, hy, hz = 0.0, 0.0, 0.0
-                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, geo, tab, inradius, alert, eps_f, scr, pts, gp)
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:], geo, tab, alert, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
-            cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt)
+            cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw)
             body_i[m], body_j[m] = i, j
             shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
             normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
