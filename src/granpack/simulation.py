@@ -33,7 +33,12 @@ largest closing speed (PHYSICS.md §2.11):
 .. math:: a_n = \\max\\big(a, \\; 1.5\\,(2 h \\max_p (|v_p| + R_p |ω_p|) + g h^2)\\big)
 
 (two bodies approaching, see :func:`granpack.nscd.required_alert`, with a margin of 1.5), rounded
-up to ``a 2^k`` so that the Verlet list is rebuilt only when the level changes.
+up to ``a 2^k`` so that the Verlet list is rebuilt only when the level changes. The alert distance
+plus the Verlet skin must stay below ``L/2 - d_max`` (one periodic image per pair); when ``a_n``
+would exceed that ceiling (narrow cells, fast pours), the step is split into ``k`` substeps of
+``h/k``, ``k`` the smallest integer for which ``a_n/k`` fits: a missed contact would appear
+already interpenetrating by up to the missing distance, and thin grains can then pass through
+each other. The Verlet skin is at most a quarter of the room the alert distance leaves.
 
 Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
 grows frame by frame and is cut back to the checkpoint on resume):
@@ -104,6 +109,8 @@ class _Counters:
     max_overlap: float = 0.0
     correction_steps: int = 0
     correction_energy: float = 0.0
+    split_steps: int = 0  # steps split into substeps (alert distance above the cell's ceiling)
+    solves: int = 0  # NLGS velocity solves (one per step, k per split step)
     detection_seconds: float = 0.0
     solver_seconds: float = 0.0
     deposit_seconds: float = 0.0
@@ -131,14 +138,21 @@ def criteria_of(config: RunConfig) -> EquilibriumCriteria:
                                kinetic_energy=e.kinetic_tolerance, wall=e.wall_tolerance)
 
 
-def step_alert(state: ParticleState, base: float, time_step: float, ceiling: float) -> float:
-    """Alert distance of the next step, d: ``base 2^k`` covering ``_ALERT_MARGIN`` times
-    :func:`~granpack.nscd.required_alert` (module docstring), at most ``ceiling``."""
+def step_alert(state: ParticleState, base: float, time_step: float, ceiling: float) -> tuple[float, int]:
+    """Alert distance (d) and number of substeps of the next step (module docstring).
+
+    ``need = _ALERT_MARGIN *`` :func:`~granpack.nscd.required_alert` ``(h)``; the step is split
+    into ``k = ceil(need / ceiling)`` substeps of ``h/k`` (which close at most ``need/k``: the
+    bound is ``2 h s + h^2``), and the alert distance is ``base 2^j`` covering ``need/k``, at most
+    ``ceiling``.
+    """
     need = _ALERT_MARGIN * required_alert(state, time_step)
+    substeps = max(1, math.ceil(need / ceiling - 1e-12))
+    need /= substeps
     if need <= base:
-        return base
+        return base, substeps
     level = base * 2.0 ** math.ceil(math.log2(need / base))
-    return min(level, ceiling)
+    return min(level, ceiling), substeps
 
 
 def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleState, Mixture]:
@@ -241,7 +255,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     d_min = 2.0 * float(state.shapes.radius.min())
     d_max = 2.0 * float(state.shapes.radius.max())
     room = 0.5 * config.lateral_size - d_max - 1e-9  # one periodic image per pair: alert + skin < room
-    skin = max(0.0, min(_SKIN_FRACTION * d_min, room - params.alert))
+    skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - params.alert)))
     ceiling = max(params.alert, room - skin)
     detector = Detector(skin=skin)
     n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
@@ -252,34 +266,41 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     status = STATUS_NOT_AT_REST
 
     def packing_now(extra: dict) -> Packing:
-        return _packing(state, contacts if contacts is not None else ContactSet.empty(), config, mixture,
-                        {"step": counters.step, "time": state.time, **extra})
+        packing = _packing(state, contacts if contacts is not None else ContactSet.empty(), config, mixture,
+                           {"step": counters.step, "time": state.time, **extra})
+        return replace(packing, time_step=step_h)  # the contacts' impulses are over the last (sub)step
+
+    step_h = h
 
     bar = _SettlingProgress(progress, eq.max_time)
     with bar:
         while counters.step < n_steps_max:
-            alert = step_alert(state, params.alert, h, ceiling)
+            alert, substeps = step_alert(state, params.alert, h, ceiling)
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             slop = params.overlap_slop if alert == params.alert else min(params.overlap_slop, pour_slop)
-            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop)
-            prediction = predict(state, step_params)
-            t0 = time.perf_counter()
-            detected = detector.detect(prediction.state, alert, previous=contacts)
-            t1 = time.perf_counter()
-            contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0)
+            step_h = h / substeps
+            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h)
+            for _ in range(substeps):
+                prediction = predict(state, step_params)
+                t0 = time.perf_counter()
+                detected = detector.detect(prediction.state, alert, previous=contacts)
+                t1 = time.perf_counter()
+                contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0)
+                counters.solves += 1
+                counters.iterations_total += info.iterations
+                counters.iterations_max = max(counters.iterations_max, info.iterations)
+                counters.unconverged_steps += 0 if info.converged else 1
+                counters.point_updates += info.iterations * info.n_points
+                counters.max_overlap = max(counters.max_overlap, info.max_overlap)
+                counters.correction_steps += 1 if info.correction_iterations else 0
+                counters.correction_energy += info.correction_energy
+                counters.detection_seconds += info.detection_seconds
+                counters.solver_seconds += info.solver_seconds
             counters.step += 1
-            counters.iterations_total += info.iterations
-            counters.iterations_max = max(counters.iterations_max, info.iterations)
-            counters.unconverged_steps += 0 if info.converged else 1
-            counters.point_updates += info.iterations * info.n_points
-            counters.max_overlap = max(counters.max_overlap, info.max_overlap)
-            counters.correction_steps += 1 if info.correction_iterations else 0
-            counters.correction_energy += info.correction_energy
-            counters.detection_seconds += info.detection_seconds
-            counters.solver_seconds += info.solver_seconds
+            counters.split_steps += 1 if substeps > 1 else 0
 
             if counters.step % check_every == 0:
-                report = check_equilibrium(state, contacts, h, criteria=criteria)
+                report = check_equilibrium(state, contacts, step_h, criteria=criteria)
                 counters.passes = counters.passes + 1 if report.passed and counters.near_rest else 0
                 counters.near_rest = counters.near_rest or report.kinetic_energy < _NEAR_REST * criteria.kinetic_energy
                 counters.last_report = report.as_dict()
@@ -294,7 +315,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
 
     if report is None or counters.step % check_every != 0:
-        report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), h, criteria=criteria)
+        report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), step_h,
+                                   criteria=criteria)
         counters.last_report = report.as_dict()
     counters.wall_seconds = wall_before + time.perf_counter() - wall_start
     summary = _summary(config, state, contacts, counters, report, status)
@@ -333,11 +355,13 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
             "point_updates_per_second": c.point_updates / c.solver_seconds if c.solver_seconds > 0 else None,
         },
         "nlgs": {
-            "mean_iterations": c.iterations_total / steps,
+            "mean_iterations": c.iterations_total / max(c.solves, 1),
             "max_iterations": c.iterations_max,
             "unconverged_steps": c.unconverged_steps,
+            "solves": c.solves,
             "tolerance": config.solver.tolerance,
         },
+        "split_steps": c.split_steps,
         "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
         "equilibrium": report.as_dict(),
         "final": {
