@@ -36,6 +36,7 @@ import json
 import math
 import os
 import platform
+import sys
 import time
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -171,7 +172,7 @@ def main(argv=None) -> dict:
         for name, (n, share) in wanted.items():
             t0 = time.perf_counter()
             configs[name] = build_dense(n, share, rng)
-            print(f"# built {name} in {time.perf_counter() - t0:.1f} s", flush=True)
+            print(f"# built {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     out = {"alert": ALERT, "move_per_step": args.move, "machine": platform.machine(), "python": platform.python_version(),
            "numba_threads": os.environ.get("NUMBA_NUM_THREADS"), "results": {}}
     for name, state in configs.items():
