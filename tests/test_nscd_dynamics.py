@@ -271,6 +271,28 @@ def test_settling_pile_overlaps_stay_small():
     print(f"largest overlap {max(overlaps):.2e} d, at the end {max(0.0, -final.gap.min()):.2e} d")
 
 
+def test_position_correction_translates_and_never_turns_a_grain():
+    """A pinacoid on one vertex, 0.01 d into the wall, at rest: one step with ``overlap_slop`` 1e-4 d.
+
+    The correction lifts it (lowest point back to about -slop/2) by a translation only: the
+    grain turns by exactly ``θ h |ω^{n+1}|`` (the velocity update), not by the ~0.02 rad a
+    rotation about the contact would take (the pumping that rotational projection caused on
+    small grains wedged between large ones, :mod:`granpack.nscd.integrator`).
+    """
+    q = quat_multiply(quat_from_axis_angle([1.0, 0.3, 0.0], 0.4), quat_from_axis_angle([0.0, 0.0, 1.0], 0.2))
+    lowest = half_height(PIN, q)
+    state = make_state(PIN, [[0.0, 0.0, lowest - 0.01]], [q])
+    params = StepParameters(time_step=H, overlap_slop=1e-4)
+    contacts, info = step(state, params)
+    assert info.correction_iterations > 0 and (contacts.gap < 0).sum() == 1  # one vertex in the wall
+    bottom = state.position[0, 2] - half_height(PIN, state.quaternion[0])
+    assert -1e-4 <= bottom <= 0.0
+    cos_half = abs(float(np.dot(state.quaternion[0], q)))
+    turned = 2.0 * np.arccos(min(1.0, cos_half))
+    assert turned == pytest.approx(0.5 * H * np.linalg.norm(state.omega[0]), abs=1e-9)
+    assert turned < 1e-3
+
+
 def test_body_crossing_the_periodic_boundary_keeps_contacts_and_velocity():
     """A pinacoid on a face carrying a sphere 0.2 d off-centre, both sliding (μ = 0) across x = L."""
     lateral = 4.0

@@ -331,12 +331,19 @@ class ContactProblem:
         return float(num / den)
 
     def projection(self, offset: np.ndarray) -> "ContactProblem":
-        """The frictionless problem of the same points with new offsets, zero free velocity and no warm start.
+        """The translational frictionless problem of the same points for the position correction.
 
-        Used for the position correction: the 'velocities' of its solution are displacements.
+        New offsets, zero free velocity, no warm start, and no angular terms: ``W_nn = 1/m_i + 1/m_j``,
+        so the 'velocities' of its solution are translations only (see
+        :mod:`granpack.nscd.integrator` for why rotations are left out).
         """
+        data = self.normal_data.copy()
+        data[:, AIN : KJN + 3] = 0.0
+        data[:, WNN] = data[:, IMI] + data[:, IMJ]
+        data[:, INVW] = 1.0 / data[:, WNN]
         return replace(
             self,
+            normal_data=data,
             offset=np.ascontiguousarray(offset, dtype=np.float64),
             friction_data=None,
             free_velocity=np.zeros_like(self.free_velocity),
