@@ -17,6 +17,7 @@ from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row
 from granpack.cli import main
 from granpack.config import load_config_dict
 from granpack.mixture import Mixture
+from granpack.simulation import initial_state
 from granpack.errors import InputError
 
 TINY = textwrap.dedent(
@@ -99,16 +100,24 @@ def test_example_campaigns_load():
         "flat-elongated": [14, 29, 50, 70, 100],
     }
     assert all(r.config["n_particles"] == 3000 for r in study.runs)
-    # every small run is a column about 7 largest grains tall (at solid fraction 0.66, see the
-    # example's header): a bulk region of about 3 d_max between the 2 d_max margins of the
-    # analysis, except where the cap of 1000 grains binds (51 % and 64 % of small pinacoids)
+    # every small run is a column 7 largest grains tall (at solid fraction 0.66, see the example's
+    # header): a bulk region of about 3 d_max between the 2 d_max margins of the analysis, except
+    # where the cap of 600 grains binds (mixtures dominated by small or flat & elongated grains);
+    # max_time covers the fall of the top grain of the deposited column plus 15 sqrt(d/g)
+    short = {"pinacoids-small-13", "pinacoids-small-30", "pinacoids-small-51", "pinacoids-small-64", "flat-elongated-100"}
     for run in small.runs:
         config = load_config_dict(run.config)
         mixture = Mixture.from_config(config)
         solid = float(np.sum(mixture.counts * mixture.particle_volumes))
-        height = solid / (0.66 * config.lateral_size**2) / max(p.size for p in config.populations)
-        assert 300 <= config.n_particles <= 1450
-        assert 6.5 <= height <= 8.0 or (run.mixture in ('pinacoids-small-51', 'pinacoids-small-64') and height >= 2.4), (run.mixture, height)
+        d_max = max(p.size for p in config.populations)
+        height = solid / ((0.64 if run.family == "spheres" else 0.66) * config.lateral_size**2) / d_max
+        assert 250 <= config.n_particles <= 1000
+        if run.family != "spheres":
+            assert config.n_particles <= 300 or (run.mixture in short and config.n_particles == 600) or height >= 6.5
+        assert 6.5 <= height <= 7.5 or (run.mixture in short and config.n_particles == 600), (run.mixture, height)
+        state, _ = initial_state(config)
+        fall = np.sqrt(2.0 * state.position[:, 2].max())
+        assert fall + 15.0 <= config.equilibrium.max_time <= fall + 20.0, (run.mixture, fall)
 
 
 def test_longest_runs_start_first():
