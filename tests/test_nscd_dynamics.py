@@ -370,3 +370,13 @@ def test_required_alert_catches_fast_approaches_that_a_fixed_alert_misses():
     assert state.velocity[0, 0] == pytest.approx(0.0, abs=1e-12)
     assert required_alert(state, H) == pytest.approx(2 * H * np.linalg.norm(state.velocity[0]) + H * H)
     assert required_alert(state, H, minimum=0.02) == 0.02
+
+
+def test_step_parameters_reject_bad_values_and_bound_the_correction_budget():
+    for bad in ({"time_step": 0.0}, {"theta": 0.4}, {"friction": -0.1}, {"restitution": 1.5}, {"alert": -1.0},
+                {"correction_sweeps": 0}):
+        with pytest.raises(ValueError):
+            StepParameters(**bad)
+    assert StepParameters().correction_options.max_iterations == 200
+    assert StepParameters(max_iterations=50).correction_options.max_iterations == 50
+    assert StepParameters(tolerance=3e-4).correction_options.tolerance == 3e-4
