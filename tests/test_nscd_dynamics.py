@@ -6,7 +6,8 @@ divided by h.
 
 Energy (decision, documented here and in :mod:`granpack.nscd.integrator`): the energy budget of
 a step is ``ΔE - correction_energy``, where ``correction_energy`` (:class:`StepInfo`) is the
-potential energy ``Σ m g δz`` the post-step position correction adds (it moves positions only).
+potential energy ``Σ m g δz`` the post-step position correction adds (it moves positions, and
+only removes kinetic energy).
 For θ = 1 the Moreau–Jean step with e_N = 0 is strictly dissipative,
 ``ΔE - ΔE_corr = Σ r u^{n+1} - ½|ΔV|²_M <= 0``; for θ = ½ (the default) the impulses work at
 the mean velocity, ``ΔE - ΔE_corr = Σ_α r_α (u^n_α + u^{n+1}_α) / 2`` with ``u^{n+1} <= 0``
@@ -282,7 +283,7 @@ def test_position_correction_translates_and_never_turns_a_grain():
     q = quat_multiply(quat_from_axis_angle([1.0, 0.3, 0.0], 0.4), quat_from_axis_angle([0.0, 0.0, 1.0], 0.2))
     lowest = half_height(PIN, q)
     state = make_state(PIN, [[0.0, 0.0, lowest - 0.01]], [q])
-    params = StepParameters(time_step=H, overlap_slop=1e-4)
+    params = StepParameters(time_step=H, overlap_slop=1e-4, correction_step=0.1)  # the whole correction at once
     contacts, info = step(state, params)
     assert info.correction_iterations > 0 and (contacts.gap < 0).sum() == 1  # one vertex in the wall
     bottom = state.position[0, 2] - half_height(PIN, state.quaternion[0])
@@ -374,9 +375,22 @@ def test_required_alert_catches_fast_approaches_that_a_fixed_alert_misses():
 
 def test_step_parameters_reject_bad_values_and_bound_the_correction_budget():
     for bad in ({"time_step": 0.0}, {"theta": 0.4}, {"friction": -0.1}, {"restitution": 1.5}, {"alert": -1.0},
-                {"correction_sweeps": 0}):
+                {"correction_sweeps": 0}, {"correction_step": 0.0}):
         with pytest.raises(ValueError):
             StepParameters(**bad)
     assert StepParameters().correction_options.max_iterations == 200
     assert StepParameters(max_iterations=50).correction_options.max_iterations == 50
     assert StepParameters(tolerance=3e-4).correction_options.tolerance == 3e-4
+
+
+@pytest.mark.parametrize(("overlap", "lift"), [(5e-4, 5e-4 - 5e-5), (0.01, 1e-3)])
+def test_position_correction_lifts_to_half_the_slop_at_most_one_correction_step_per_step(overlap, lift):
+    """A sphere at rest ``overlap`` into the wall, ``overlap_slop`` 1e-4 d: one step lifts it to
+    an overlap of slop/2, or by ``correction_step`` (1e-3 d) when more is needed (the bound that
+    stops the correction/IQS treadmill, :mod:`granpack.nscd.integrator`); its velocity stays 0."""
+    ball = Sphere(1.0)
+    state = make_state(ball, [[0.0, 0.0, 0.5 - overlap]])
+    _, info = step(state, StepParameters(time_step=H, overlap_slop=1e-4))
+    assert info.correction_iterations > 0
+    assert state.position[0, 2] - (0.5 - overlap) == pytest.approx(lift, abs=1e-12)
+    np.testing.assert_allclose(state.velocity[0], 0.0, atol=1e-15)

@@ -259,9 +259,14 @@ def test_thin_grains_poured_into_a_narrow_cell_do_not_pass_through_each_other(tm
     summary = run_packing(config, tmp_path, progress=False)
     assert summary["split_steps"] > 0
     assert summary["nlgs"]["solves"] > summary["steps"]
-    # measured: 0.011 d during the run and 6.7e-4 d at the end; without splitting 0.020 and 2.4e-3
+    # measured: 0.014 d during the run (0.020 without splitting); at the end, while the pile still
+    # moves, mean 1.0e-4 d and max 5.0e-3 d: overlaps below the safety-net slop (5e-3 d) are no
+    # longer corrected once grains are slow, and the correction moves a grain by at most 1e-3 d
+    # per step (granpack.nscd.integrator)
     assert summary["max_overlap_during_run"] < 0.015
-    assert summary["final"]["max_overlap"] < 1.5e-3
+    final_gaps = read_packing(tmp_path / "final.gsd").contacts.gap
+    assert summary["final"]["max_overlap"] < 5e-3 + 1e-3
+    assert -final_gaps[final_gaps < 0].mean() < 2e-4
     # the stored impulses are those of the last (sub)step: its length goes with them
     k = 5e-3 / read_packing(tmp_path / "final.gsd").time_step
     assert k == pytest.approx(round(k)) and round(k) >= 1

@@ -56,6 +56,7 @@ __all__ = ["CampaignReport", "run_campaign", "run_task", "MAX_ATTEMPTS"]
 MAX_ATTEMPTS = 2
 #: environment of the local workers: one thread each for Numba, OpenMP and BLAS
 _WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_PROGRESS_SECONDS = 2.0  # longest wait between two refreshes of the progress line
 _FINAL_FILE = "final.gsd"
 _CHECKPOINT_GLOB = "checkpoint*"
 
@@ -173,6 +174,8 @@ def longest_first(runs: list[RunSpec]) -> list[RunSpec]:
 
 def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
     """Submit ``todo``, retry failures once, show progress; returns (done, failed) counts."""
+    from distributed import wait
+
     attempts: dict[Path, int] = {}
     active: dict = {}
 
@@ -216,8 +219,11 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                     bar.console.print(f"[red]failed[/red]  {label}: {outcome['error']}")
             running = sum(len(keys) for keys in client.processing().values())
             bar.update(task, completed=done + failed, done=done, running=running, failed=failed)
-            if not finished:
-                time.sleep(0.2)
+            if active:
+                try:  # block until a run ends (a bounded wait, to refresh the running count)
+                    wait(list(active), timeout=_PROGRESS_SECONDS, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    pass
     return done, failed
 
 
