@@ -43,9 +43,8 @@ corrected grain (solid fraction 0.55 instead of 0.65, wall force 0.11 weight) an
 does not conserve horizontal momentum. Velocities are not changed by the correction; the
 energy it adds is the potential energy ``Σ m g δz`` of lifting overlapping grains back to
 contact, which :class:`StepInfo` reports as ``correction_energy`` so that energy budgets can
-account for it. Overlaps then stay below about
-``s`` (plus the detection and linearisation error). The projection gets at most
-``correction_sweeps`` (200) NLGS sweeps: lifting a column by Gauss–Seidel converges slowly (on
+account for it. Overlaps then stay below about ``s`` (plus the detection and linearisation
+error). The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by Gauss–Seidel converges slowly (on
 a pour of flat grains it used its 2000 sweeps at every step, 4 times the cost of the velocity
 solve); a partial correction, which pushes less than the full one, is completed at the next
 steps (measured on 250 isometric pinacoids: half the run time, mean overlap 4.3e-4 d vs 5.1e-4).
@@ -140,7 +139,7 @@ class StepParameters:
 
     @property
     def correction_options(self) -> NLGSOptions:
-        sweeps = max(1, min(self.correction_sweeps, self.max_iterations))
+        sweeps = min(self.correction_sweeps, self.max_iterations)
         return NLGSOptions(tolerance=self.tolerance, max_iterations=sweeps, check_every=self.check_every)
 
 
