@@ -102,9 +102,11 @@ def test_example_campaigns_load():
     assert all(r.config["n_particles"] == 3000 for r in study.runs)
     # every small run is a column 7 largest grains tall (at solid fraction 0.66, see the example's
     # header): a bulk region of about 3 d_max between the 2 d_max margins of the analysis, except
-    # where the cap of 600 grains binds (mixtures dominated by small or flat & elongated grains);
+    # where a cap binds: 600 grains where small grains dominate, 400 for the thin-plate mixtures;
     # max_time covers the fall of the top grain of the deposited column plus 15 sqrt(d/g)
-    short = {"pinacoids-small-13", "pinacoids-small-30", "pinacoids-small-51", "pinacoids-small-64", "flat-elongated-100"}
+    capped = {"pinacoids-small-13": 600, "pinacoids-small-30": 600, "pinacoids-small-51": 600,
+              "pinacoids-small-64": 600, "flat-92": 400, "flat-100": 400, "flat-elongated-50": 400,
+              "flat-elongated-70": 400, "flat-elongated-100": 400}
     for run in small.runs:
         config = load_config_dict(run.config)
         mixture = Mixture.from_config(config)
@@ -113,8 +115,8 @@ def test_example_campaigns_load():
         height = solid / ((0.64 if run.family == "spheres" else 0.66) * config.lateral_size**2) / d_max
         assert 250 <= config.n_particles <= 1000
         if run.family != "spheres":
-            assert config.n_particles <= 300 or (run.mixture in short and config.n_particles == 600) or height >= 6.5
-        assert 6.5 <= height <= 7.5 or (run.mixture in short and config.n_particles == 600), (run.mixture, height)
+            assert config.n_particles <= 300 or config.n_particles == capped.get(run.mixture) or height >= 6.5
+        assert 6.5 <= height <= 7.5 or config.n_particles == capped.get(run.mixture), (run.mixture, height)
         state, _ = initial_state(config)
         fall = np.sqrt(2.0 * state.position[:, 2].max())
         assert fall + 15.0 <= config.equilibrium.max_time <= fall + 20.0, (run.mixture, fall)
