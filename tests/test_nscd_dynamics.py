@@ -394,3 +394,34 @@ def test_position_correction_lifts_to_half_the_slop_at_most_one_correction_step_
     assert info.correction_iterations > 0
     assert state.position[0, 2] - (0.5 - overlap) == pytest.approx(lift, abs=1e-12)
     np.testing.assert_allclose(state.velocity[0], 0.0, atol=1e-15)
+
+
+def test_capped_position_correction_never_digs_a_new_overlap():
+    """Four balls: B sits 0.02 d into A (A on the wall), C touches B from the side and D is
+    0.002 d into C. The correction lifts B by 0.02 d and pushes C towards B by 0.001 d; with the
+    bound of 1e-3 d per step, scaling each body alone (B by 1/20, C not at all) drove C 6e-4 d
+    into B. One common factor keeps every contact that was not overlapping at >= -slop/2 while
+    the overlaps shrink (:mod:`granpack.nscd.integrator`)."""
+    slop = 1e-4
+    start = np.array([[0.0, 0.0, 0.5], [0.0, 0.0, 1.48], [1.0, 0.0, 1.48], [1.998, 0.0, 1.48]])
+    state = make_state(Sphere(1.0), start.copy(), box=12.0)
+
+    def gaps():
+        found = detect(state, 1e-3)
+        m = np.repeat(np.arange(found.n_manifolds), np.diff(found.point_start))
+        return {(int(found.body_i[k]), int(found.body_j[k])): float(found.gap[m == k].min())
+                for k in range(found.n_manifolds)}
+
+    before = gaps()
+    assert before[(1, 2)] == pytest.approx(0.0, abs=1e-12) and before[(0, 1)] == pytest.approx(-0.02)
+    params = StepParameters(time_step=H, overlap_slop=slop, tolerance=1e-8, max_iterations=20000,
+                            correction_sweeps=20000)
+    _, info = step(state, params)
+    after = gaps()
+    assert info.correction_iterations > 0
+    assert state.position[1, 2] - start[1, 2] == pytest.approx(1e-3, abs=1e-6)  # the longest translation
+    for pair, gap in before.items():
+        if gap >= -0.5 * slop:
+            assert after[pair] >= -0.5 * slop, pair
+        else:
+            assert after[pair] > gap + 5e-5, pair
