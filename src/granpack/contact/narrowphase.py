@@ -150,7 +150,7 @@ def _separation(X, na, nb, ux, uy, uz):
     return s2, -1.0
 
 
-@jit
+@jit(inline="always")
 def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert, rin, margin, X):
     """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
 
@@ -234,7 +234,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
 # manifold construction
 
 
-@jit
+@jit(inline="always")
 def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0,
                inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
     """Clip the incident face against the reference face with outward normal ``n``.
@@ -321,7 +321,7 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
     return cnt, gmin
 
 
-@jit
+@jit(inline="always")
 def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx, ny, nz, se, X, h, pts, gp):
     """One point from the crossing edges that realise an edge-edge axis ``n`` (from A to B).
 
@@ -398,7 +398,7 @@ def _line_params(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):
     return s, t
 
 
-@jit
+@jit(inline="always")
 def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw):
     """Merge points closer than ``eps_pt`` and keep at most four that span the largest area.
 
@@ -588,7 +588,7 @@ def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pt
     return 1
 
 
-@jit
+@jit(inline="always")
 def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pts, gp):
     """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``).
 
