@@ -27,30 +27,37 @@ out on purpose: in the mass metric a rotation of a small grain is cheap, and a s
 between larger ones was turned by 20-30 degrees per step, far outside the linearisation, into
 its other neighbours (overlaps of 0.05 d that the next projection moved elsewhere, a pile kept
 agitated; translations only: 0.015 d at worst, measured on a bidisperse pour, size ratio 3).
-No body is pushed further than the overlap it had (no ejection), nor by more than
-``correction_step`` (1e-3 d) in one step: the whole correction is scaled by one factor, so that
-its longest translation has that length (overlaps deeper than that are removed over several
-steps). One factor for all bodies, not one per body: the set of translations that keep every
-linearised gap that was at least ``-s/2`` at least ``-s/2`` is convex and holds both 0 and the
-solution ``δx``, so it holds every ``f δx`` with ``0 <= f <= 1``, and every overlap deeper than
-that shrinks. Scaling each body to the bound on its own broke this: a grain lifted by a deep
-overlap below it (scaled down 20 times) no longer made room for a neighbour pushed sideways into
-it by a small overlap (not scaled), and the correction itself dug new overlaps of up to
-``correction_step`` per step. In piles of thin plates (flat and flat & elongated pinacoids) this
-outran the correction: after landing, overlaps grew to 0.1-0.2 d, deeper than the plates are
-thick (400 flat & elongated grains: 250 points deeper than 0.01 d at t = 17.5 with the per-body
-bound, none with the common factor, largest overlap 1.7e-3 d). The price: while one overlap is
-deep (a small grain wedged between large ones), every other overlap is corrected as slowly
-(600 pinacoids, 13 % small by volume, size ratio 3: mean overlap of the overlapping points
-1.4e-3 d against 6e-4 d with the per-body bound, 2 sqrt(d/g) after landing). Asking each contact
-for at most ``correction_step`` instead (Box2D's clamp) corrects faster and fed the treadmill
-below: 400 flat & elongated grains reached 0.13 d. Without the bound the correction and
+No body is pushed further than the overlap it had (no ejection), nor, in one step, by more
+than ``correction_step`` (1e-3 d) in each of two passes (overlaps deeper than that are removed
+over several steps):
+
+1. the projection above, each body's translation then scaled down to ``correction_step``;
+2. if some body was bounded, the bounded bodies are held still (inverse mass 0) and the others solve
+   the same projection with offsets ``max(g^{end}_α + s/2, 0) + n_α·(δx_i - δx_j)``: no contact
+   may end deeper than it was before the correction, nor a non-overlapping one below
+   ``-s/2``; their translations are scaled by one common factor to ``correction_step``.
+
+Pass 1's bound alone is inconsistent: a grain lifted by a deep overlap below it (scaled down 20
+times) no longer makes room for a neighbour pushed sideways into it by a small overlap (not
+scaled), and the correction itself digs new overlaps of up to ``correction_step`` per step. In
+piles of thin plates (flat and flat & elongated pinacoids) this outran the correction: after
+landing, overlaps grew to 0.1-0.2 d, deeper than the plates are thick. Pass 2 undoes it: the
+translations that satisfy its constraints form a convex set holding 0 (where pass 1 dug
+nothing) and its solution, so the common factor keeps them satisfied. One common factor for the
+whole correction (instead of pass 2) is consistent too, but while one overlap is deep (a small
+grain wedged between large ones, an impact) it slows the correction of every other: measured on
+400 flat grains (L/G 1, G/E 3, 2.25 d cell, 30 sqrt(d/g)), the common factor ended with overlaps
+of 0.057 d (mean 5.6e-3, 48 m g d added by the correction), the two passes with 3.4e-3 d (mean
+1.5e-4, 12 m g d); 400 flat & elongated grains: per-body bound 0.091 d at t = 20, two passes
+4.3e-3 d (mean 2.5e-4) at the end. Asking each contact for at most ``correction_step`` (Box2D's
+clamp) with one common factor corrected faster still and fed the treadmill below (flat &
+elongated grains reached 0.13 d). Without the bound the correction and
 the gap anticipation of IQS (``u_n >= -g/h``) fed each other: a corrected grain fell back, at the
 speed it had, into the gaps the correction had opened around it, and the next correction lifted
 it again: a treadmill that kept a column of 600 flat & elongated grains 'falling' at up to
 4 sqrt(g d) (0.35 at the bottom, 4.1 at the top) while it stood still, with a kinetic energy of
 65 m g d and 717 m g d of potential energy added by the correction at the end of a 35 sqrt(d/g)
-run. The bound caps the speed such a cycle can reach at ``correction_step / h`` (0.2 sqrt(g d)),
+run. The bound caps the speed such a cycle can reach at ``2 correction_step / h`` (0.4 sqrt(g d)),
 below which the velocity solve stops it (300 flat grains in a 2.25 d cell after 30 sqrt(d/g):
 wall force 1.009 weight, kinetic energy 2e-3 m g d, mean overlap 1.8e-4 d). Zeroing the
 velocity against the correction instead also breaks the cycle, but acts as a drag on every
@@ -278,12 +285,7 @@ def advance(
     if problem.n_points and params.overlap_slop > 0:
         gap_end = problem.gap + theta * h * problem.local_velocity(v_end)[:, 0]
         if gap_end.min() < -params.overlap_slop:
-            correction = problem.projection(gap_end + 0.5 * params.overlap_slop)
-            pseudo, cinfo = solve(correction, params.correction_options)
-            displacement = correction.velocity(pseudo)
-            longest = float(np.linalg.norm(displacement[:, :3], axis=1).max())
-            displacement *= min(1.0, params.correction_step / max(longest, 1e-300))
-            correction_iterations = cinfo.iterations
+            displacement, correction_iterations = _position_correction(problem, gap_end, params)
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
     update_kernel(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
@@ -305,6 +307,36 @@ def advance(
         solver_seconds=solver_seconds,
         detection_seconds=detection_seconds,
     )
+
+
+def _position_correction(problem, gap_end: np.ndarray, params: StepParameters) -> tuple[np.ndarray, int]:
+    """Bounded post-step projection (see the module docstring): ``(displacements (N + 1, 6), sweeps)``.
+
+    Pass 1 projects every linearised gap to ``>= -s/2`` and bounds each body's translation to
+    ``correction_step``. When a bound binds, pass 2 holds the bounded bodies still and moves the
+    others so that no contact ends deeper than before the correction (what pass 1's bound dug),
+    its translations scaled by one common factor to the same bound.
+    """
+    c = params.correction_step
+    target = gap_end + 0.5 * params.overlap_slop
+    first = problem.projection(target)
+    pseudo, info = solve(first, params.correction_options)
+    sweeps = info.iterations
+    displacement = first.velocity(pseudo)
+    length = np.linalg.norm(displacement[:, :3], axis=1)
+    held = length > c
+    if not held.any():
+        return displacement, sweeps
+    displacement *= np.minimum(1.0, c / np.maximum(length, 1e-300))[:, None]
+    moved = first.local_velocity(displacement)[:, 0]
+    second = problem.projection(np.maximum(target, 0.0) + moved, held=held)
+    if second.offset.min() < 0.0:
+        pseudo, info = solve(second, params.correction_options)
+        sweeps += info.iterations
+        extra = second.velocity(pseudo)
+        longest = float(np.linalg.norm(extra[:, :3], axis=1).max())
+        displacement += extra * min(1.0, c / max(longest, 1e-300))
+    return displacement, sweeps
 
 
 def step(state: ParticleState, params: StepParameters, warm: ContactSet | None = None) -> tuple[ContactSet, StepInfo]:
