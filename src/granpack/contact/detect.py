@@ -53,6 +53,38 @@ def _edge_direction_index(shapes: ShapeTable) -> np.ndarray:
     return out
 
 
+def _antipodal_halves(shapes: ShapeTable) -> tuple[np.ndarray, np.ndarray]:
+    """CSR over kinds of one vertex (local index) of each antipodal pair ``(v, -v)``; the block of
+    a kind is empty unless the kind is a centrally symmetric polyhedron."""
+    blocks = []
+    for k in range(shapes.n_kinds):
+        v = shapes.vertices[shapes.vertex_start[k]:shapes.vertex_start[k + 1]]
+        tol = 1e-9 * max(float(np.abs(v).max()), 1e-300) if len(v) else 0.0
+        keep = []
+        for a in range(len(v)):
+            partner = np.flatnonzero(np.linalg.norm(v + v[a], axis=1) < tol)
+            if len(partner) != 1:
+                keep = []
+                break
+            if a < partner[0]:
+                keep.append(a)
+        blocks.append(np.array(keep, dtype=np.int64))
+    start = np.zeros(shapes.n_kinds + 1, dtype=np.int64)
+    start[1:] = np.cumsum([len(b) for b in blocks])
+    return start, np.concatenate(blocks).astype(np.int64)
+
+
+def _axis_support(shapes: ShapeTable) -> np.ndarray:
+    """``(NA,)`` support ``max_v |a . v|`` of each kind along each of its face axes ``a``, d."""
+    out = np.zeros(len(shapes.face_axes))
+    for k in range(shapes.n_kinds):
+        v = shapes.vertices[shapes.vertex_start[k]:shapes.vertex_start[k + 1]]
+        rows = slice(shapes.axis_start[k], shapes.axis_start[k + 1])
+        if len(v):
+            out[rows] = np.abs(shapes.face_axes[rows] @ v.T).max(axis=1)
+    return out
+
+
 class _Tables:
     """Kernel tables derived once per :class:`ShapeTable`."""
 
@@ -63,6 +95,8 @@ class _Tables:
         max_face = int(face_sizes.max()) if len(face_sizes) else 0
         self.max_points = max(2 * max_face + 2, int(vert_counts.max()) if len(vert_counts) else 0, 4)
         self.edge_dir = _edge_direction_index(shapes)
+        self.half_start, self.half = _antipodal_halves(shapes)
+        self.axis_support = _axis_support(shapes)
         self.d_min = 2.0 * float(shapes.radius.min())
         self.d_max = 2.0 * float(shapes.radius.max())
 
@@ -135,6 +169,7 @@ class Detector:
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
         out = narrow_phase(state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
+                           tables.half_start, tables.half, shapes.axis_start, tables.axis_support,
                            self.verlet.pair_start, self.verlet.pair_j, box.lx, box.ly, alert, eps_f,
                            tables.max_points, prev_i, prev_j, prev_n)
         body_i, body_j, shift, normal, ctype, point_start, point, gap, tested = out

@@ -15,7 +15,8 @@ Pair kinds (PHYSICS.md §3.2-3.3):
 - polyhedron-polyhedron: separating-axis test over the distinct face normals of both bodies and
   the cross products of their distinct edge directions (``ShapeTable.face_axes``,
   ``edge_directions``), early exit as soon as one axis separates by more than the alert
-  distance. The manifold is then built from the best axis: for a face axis the incident face of
+  distance; for two centrally symmetric bodies (every pinacoid) each axis reads only one vertex of
+  each antipodal pair, and a body's own face axes a constant support. The manifold is then built from the best axis: for a face axis the incident face of
   the other body is clipped against the reference face's side planes (Sutherland-Hodgman) and
   more than four points are reduced to four that keep the contact area; for an edge axis it is the
   closest-point pair of the two supporting edges. Face axes are preferred unless an edge axis is
@@ -151,11 +152,37 @@ def _separation(X, na, nb, ux, uy, uz):
 
 
 @jit(inline="always")
-def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox, oy, oz, alert, rin, margin, X):
+def _half_support(Y, k0, k1, ux, uy, uz):
+    """Support ``h(u) = max_k |u . Y[:, k]|`` of a centrally symmetric body about its centre, from
+    one vertex of each antipodal pair (columns ``k0:k1``): its projection on ``u`` is ``c . u +- h``."""
+    h = 0.0
+    for k in range(k0, k1):
+        h = max(h, abs(ux * Y[0, k] + uy * Y[1, k] + uz * Y[2, k]))
+    return h
+
+
+@jit
+def _signed_gap(ox, oy, oz, ux, uy, uz, ha, hb):
+    """Separation ``|u . o| - h_A - h_B`` of two symmetric bodies along ``u`` and the side of B."""
+    c = ux * ox + uy * oy + uz * oz
+    if c >= 0.0:
+        return c - ha - hb, 1.0
+    return -c - ha - hb, -1.0
+
+
+@jit(inline="always")
+def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, half_start, half, axis_start, support, ka,
+         kb, ox, oy, oz, alert, rin, margin, X, Y):
     """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
 
-    The vertices of both bodies are first gathered into the scratch ``X`` (``(3, >= nA + nB)``,
-    B's shifted by ``o``), so every axis reads them from one small contiguous block.
+    The vertices of both bodies are gathered into the scratch ``X`` (``(3, >= nA + nB)``, B's
+    shifted by ``o``), so every axis reads them from one small contiguous block. When both bodies
+    are centrally symmetric (kinds ``ka``, ``kb`` with a non-empty block in the CSR ``half_start``,
+    ``half``: local indices of one vertex of each antipodal pair) the separation along ``u`` is
+    ``|u . o| - h_A - h_B`` with the supports ``h`` read from half the vertices in ``Y``
+    (:func:`_half_support`), or, along a body's own face axes, from ``support`` (rows
+    ``axis_start[k]:axis_start[k+1]`` of kind ``k``), a constant of the shape; ``X`` is then
+    filled only for a pair that is not separated.
 
     Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
     smallest face offset) about its centre, B likewise, so along the axis ``u = c / |c|`` of an
@@ -167,7 +194,9 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
     hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its
     projections are skipped (``rin = rho_A + rho_B``). The test is first made without the square
     root, :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the threshold lowered
-    by 1e-12 d (round-off), so most pruned axes are never normalised.
+    by 1e-12 d (round-off), and without the cross product (unit directions:
+    :math:`c \\cdot o = e_A \\cdot (e_B \\times o)`, :math:`|c|^2 = 1 - (e_A \\cdot e_B)^2`), so most
+    pruned axes are never formed.
 
     Returns:
         ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez)``: ``far`` is True when
@@ -179,26 +208,49 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
     inf = math.inf
     na = a1 - a0
     nb = b1 - b0
-    for k in range(na):
-        X[0, k], X[1, k], X[2, k] = rv[a0 + k, 0], rv[a0 + k, 1], rv[a0 + k, 2]
-    for k in range(nb):
-        X[0, na + k], X[1, na + k], X[2, na + k] = ox + rv[b0 + k, 0], oy + rv[b0 + k, 1], oz + rv[b0 + k, 2]
+    ha0, hb0 = half_start[ka], half_start[kb]
+    nha = half_start[ka + 1] - ha0
+    nhb = half_start[kb + 1] - hb0
+    sa0, sb0 = axis_start[ka], axis_start[kb]
+    sym = nha > 0 and nhb > 0
+    if sym:
+        for k in range(nha):
+            r = a0 + half[ha0 + k]
+            Y[0, k], Y[1, k], Y[2, k] = rv[r, 0], rv[r, 1], rv[r, 2]
+        for k in range(nhb):
+            r = b0 + half[hb0 + k]
+            Y[0, nha + k], Y[1, nha + k], Y[2, nha + k] = rv[r, 0], rv[r, 1], rv[r, 2]
+    else:
+        _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     # cheap first try: the centre-to-centre direction
     dd = math.sqrt(ox * ox + oy * oy + oz * oz)
     if dd > 0.0:
-        s, _ = _separation(X, na, nb, ox / dd, oy / dd, oz / dd)
+        ux, uy, uz = ox / dd, oy / dd, oz / dd
+        if sym:
+            s, _ = _signed_gap(ox, oy, oz, ux, uy, uz, _half_support(Y, 0, nha, ux, uy, uz),
+                               _half_support(Y, nha, nha + nhb, ux, uy, uz))
+        else:
+            s, _ = _separation(X, na, nb, ux, uy, uz)
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
-        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        if sym:
+            s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2], support[sa0 + k - aa0],
+                               _half_support(Y, nha, nha + nhb, ax[k, 0], ax[k, 1], ax[k, 2]))
+        else:
+            s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
         if s > sfa:
             sfa, kfa, gfa = s, k, g
     sfb, kfb, gfb = -inf, -1, 1.0
     for k in range(ab0, ab1):
-        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        if sym:
+            s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2],
+                               _half_support(Y, 0, nha, ax[k, 0], ax[k, 1], ax[k, 2]), support[sb0 + k - ab0])
+        else:
+            s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
             return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
         if s > sfb:
@@ -206,28 +258,49 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, ox,
     se, ie, je, ex, ey, ez = -inf, -1, -1, 0.0, 0.0, 0.0
     # pruning threshold on |c . o| / |c|, updated when the best separation improves
     t = max(sfa, sfb) - margin + rin - 1e-12
-    for i in range(da0, da1):
-        for j in range(db0, db1):
+    for j in range(db0, db1):
+        # w = e_B x o, so that (e_A x e_B) . o = e_A . w; |e_A x e_B|^2 = 1 - (e_A . e_B)^2
+        wx = dr[j, 1] * oz - dr[j, 2] * oy
+        wy = dr[j, 2] * ox - dr[j, 0] * oz
+        wz = dr[j, 0] * oy - dr[j, 1] * ox
+        for i in range(da0, da1):
+            cos = dr[i, 0] * dr[j, 0] + dr[i, 1] * dr[j, 1] + dr[i, 2] * dr[j, 2]
+            c2 = 1.0 - cos * cos
+            if c2 < 1e-12:
+                continue
+            co = dr[i, 0] * wx + dr[i, 1] * wy + dr[i, 2] * wz
+            if t > 0.0 and co * co < t * t * c2:
+                continue
             cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
             cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
             cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
-            c2 = cx * cx + cy * cy + cz * cz
-            if c2 < 1e-12:
-                continue
-            co = cx * ox + cy * oy + cz * oz
-            if t > 0.0 and co * co < t * t * c2:
-                continue
-            c = 1.0 / math.sqrt(c2)
+            c = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
             cx *= c
             cy *= c
             cz *= c
-            s, g = _separation(X, na, nb, cx, cy, cz)
+            if sym:
+                s, g = _signed_gap(ox, oy, oz, cx, cy, cz, _half_support(Y, 0, nha, cx, cy, cz),
+                                   _half_support(Y, nha, nha + nhb, cx, cy, cz))
+            else:
+                s, g = _separation(X, na, nb, cx, cy, cz)
             if s > alert:
                 return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
             if s > se:
                 se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
                 t = max(sfa, sfb, se) - margin + rin - 1e-12
+    if sym:
+        _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     return False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez
+
+
+@jit(inline="always")
+def _gather(rv, a0, a1, b0, b1, ox, oy, oz, X):
+    """Vertex block of a pair, coordinate-major: ``X[:, 0:nA]`` A's offsets, then B's plus ``o``."""
+    na = a1 - a0
+    for k in range(na):
+        X[0, k], X[1, k], X[2, k] = rv[a0 + k, 0], rv[a0 + k, 1], rv[a0 + k, 2]
+    for k in range(b1 - b0):
+        X[0, na + k], X[1, na + k], X[2, na + k] = ox + rv[b0 + k, 0], oy + rv[b0 + k, 1], oz + rv[b0 + k, 2]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -769,8 +842,8 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 
 @jit
-def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j, lx, ly, alert, eps_f, max_points,
-                 prev_i, prev_j, prev_n):
+def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support, pair_start,
+                 pair_j, lx, ly, alert, eps_f, max_points, prev_i, prev_j, prev_n):
     """Contact manifolds of all candidate pairs and of the bottom wall.
 
     Args:
@@ -778,6 +851,11 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
         kind: ``(N,)`` kind index; is_sphere, radius: ``(K,)`` per kind (radius in d).
         geo: :func:`world_geometry` output; tab: ``(vertex_start, face_start, face_offsets,
             face_vertex_start, face_vertices, edge_start, edges, edge_dir, kind)``.
+        half_start, half: ``(K+1,)`` CSR over kinds of the local indices of one vertex of each
+            antipodal pair for centrally symmetric polyhedra (empty block otherwise): the faster
+            separating-axis test of :func:`_sat`.
+        axis_start, axis_support: ``(K+1,)``, ``(NA,)`` the shape table's face-axis rows and the
+            support ``max_v |a . v|`` of each kind along its own face axes ``a``, d.
         pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
         lx, ly: periods, d.
         alert: alert distance, d.
@@ -809,6 +887,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
     one = np.zeros((1, 3))
     pv, pa, pd, rv, ax, dr = geo[0], geo[2], geo[3], geo[4], geo[6], geo[7]
     X, uw = scr[8], scr[7]
+    Y = np.empty((3, 2 * max_points))
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
@@ -880,7 +959,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, pair_start, pair_j
                 cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
             else:
                 sat = _sat(rv, pv[j], pv[j + 1], pv[i], pv[i + 1], ax, pa[j], pa[j + 1], pa[i], pa[i + 1], dr, pd[j],
-                           pd[j + 1], pd[i], pd[i + 1], ox, oy, oz, alert, inradius[kj] + inradius[ki], eps_f, X)
+                           pd[j + 1], pd[i], pd[i + 1], half_start, half, axis_start, axis_support, kj, ki, ox, oy,
+                           oz, alert, inradius[kj] + inradius[ki], eps_f, X, Y)
                 if sat[0]:
                     continue
                 while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
