@@ -147,6 +147,16 @@ def time_detection(state: ParticleState, skin: float, steps: int, move: float, r
     }
 
 
+def machine_speed() -> float:
+    """CPU seconds of a plain Python loop of 1e6 additions: VMs differ by factors of 2 from one
+    session to the next, so timings are compared only between runs with similar values."""
+    c0 = time.process_time()
+    total = 0
+    for k in range(1_000_000):
+        total += k
+    return time.process_time() - c0
+
+
 def describe(state: ParticleState) -> dict:
     cs = detect(state, 0.0)
     depth = -cs.gap.min() if cs.n_points else 0.0
@@ -178,7 +188,8 @@ def main(argv=None) -> dict:
             configs[name] = build_dense(n, share, rng)
             print(f"# built {name} in {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
     out = {"alert": ALERT, "move_per_step": args.move, "machine": platform.machine(), "python": platform.python_version(),
-           "numba_threads": os.environ.get("NUMBA_NUM_THREADS"), "results": {}}
+           "numba_threads": os.environ.get("NUMBA_NUM_THREADS"), "python_loop_1e6_cpu_seconds": machine_speed(),
+           "results": {}}
     for name, state in configs.items():
         res = describe(state)
         res["skin0"] = time_detection(state, 0.0, args.steps, args.move, rng)

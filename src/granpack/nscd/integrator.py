@@ -66,7 +66,12 @@ does not conserve horizontal momentum. Velocities are not changed by the correct
 energy it adds is the potential energy ``Σ m g δz`` of lifting overlapping grains back to
 contact, which :class:`StepInfo` reports as ``correction_energy`` so that energy budgets can
 account for it. Overlaps then stay below about ``s`` (plus the detection and linearisation
-error). The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by Gauss–Seidel converges slowly (on
+error). They are made while the pile moves, not at rest: the settled demo pile (300 isometric
+pinacoids, mean / max overlap 2.9e-4 / 3.6e-3 d over all points) continued for 3 sqrt(d/g)
+with ``s`` = 5e-3 keeps them to 3 digits with a kinetic energy of 1e-6; continued with
+``s`` = 1e-4 the correction acts at every step and the pile does not stay at rest (kinetic energy
+2e-2 within 1 sqrt(d/g), 11 m g d added in 10 sqrt(d/g), max overlap 6-9e-4), and with ``s`` =
+1e-4 and a ``correction_step`` of 1e-5 d it is agitated too and its overlaps grow (0.02 d). The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by Gauss–Seidel converges slowly (on
 a pour of flat grains it used its 2000 sweeps at every step, 4 times the cost of the velocity
 solve); a partial correction, which pushes less than the full one, is completed at the next
 steps (measured on 250 isometric pinacoids: half the run time, mean overlap 4.3e-4 d vs 5.1e-4).
