@@ -16,8 +16,9 @@ Pair kinds (PHYSICS.md §3.2-3.3):
   the cross products of their distinct edge directions (``ShapeTable.face_axes``,
   ``edge_directions``), early exit as soon as one axis separates by more than the alert
   distance; for two centrally symmetric bodies (every pinacoid) each axis reads only one vertex of
-  each antipodal pair, and a body's own face axes a constant support. The manifold is then built from the best axis: for a face axis the incident face of
-  the other body is clipped against the reference face's side planes (Sutherland-Hodgman) and
+  each antipodal pair, and a body's own face axes a constant support. The manifold is then
+  built from the best axis: for a face axis the incident face of the other body is clipped
+  against the reference face's side planes (Sutherland-Hodgman) and
   more than four points are reduced to four that keep the contact area; for an edge axis it is the
   closest-point pair of the two supporting edges. Face axes are preferred unless an edge axis is
   better by more than ``eps_f`` (hysteresis, Box2D/Bullet practice).
@@ -182,7 +183,9 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
     ``|u . o| - h_A - h_B`` with the supports ``h`` read from half the vertices in ``Y``
     (:func:`_half_support`), or, along a body's own face axes, from ``support`` (rows
     ``axis_start[k]:axis_start[k+1]`` of kind ``k``), a constant of the shape; ``X`` is then
-    filled only for a pair that is not separated.
+    filled only for a pair that is not separated. (The two paths are written out at each axis on
+    purpose: one helper taking both, inlined, made the detection of a 3000-pinacoid pile 17 %
+    slower.)
 
     Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
     smallest face offset) about its centre, B likewise, so along the axis ``u = c / |c|`` of an

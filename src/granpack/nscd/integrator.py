@@ -71,7 +71,9 @@ pinacoids, mean / max overlap 2.9e-4 / 3.6e-3 d over all points) continued for 3
 with ``s`` = 5e-3 keeps them to 3 digits with a kinetic energy of 1e-6; continued with
 ``s`` = 1e-4 the correction acts at every step and the pile does not stay at rest (kinetic energy
 2e-2 within 1 sqrt(d/g), 11 m g d added in 10 sqrt(d/g), max overlap 6-9e-4), and with ``s`` =
-1e-4 and a ``correction_step`` of 1e-5 d it is agitated too and its overlaps grow (0.02 d). The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by Gauss–Seidel converges slowly (on
+1e-4 and a ``correction_step`` of 1e-5 d it is agitated too and its overlaps grow (0.02 d).
+The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by
+Gauss–Seidel converges slowly (on
 a pour of flat grains it used its 2000 sweeps at every step, 4 times the cost of the velocity
 solve); a partial correction, which pushes less than the full one, is completed at the next
 steps (measured on 250 isometric pinacoids: half the run time, mean overlap 4.3e-4 d vs 5.1e-4).
