@@ -161,7 +161,9 @@ def render_packing(
             polygons, facecolors=np.concatenate(colours), edgecolors=np.concatenate(edges), linewidths=0.2
         )
         collection.set_rasterized(True)  # keeps the SVG small; axes and labels stay vector
-        ax.add_collection3d(collection)
+        # the limits are set below; matplotlib's autoscaling would read the uninitialised padding
+        # of its ragged face array (triangles and quads), and failed on NaN or Inf now and then
+        ax.add_collection3d(collection, autolim=False)
     lx, ly = packing.box.lx, packing.box.ly
     top = float((state.position[:, 2] + state.radius).max()) if state.n else 1.0
     ax.plot([0, lx, lx, 0, 0], [0, 0, ly, ly, 0], [0, 0, 0, 0, 0], color="0.4", linewidth=0.8)
