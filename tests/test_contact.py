@@ -466,6 +466,50 @@ def test_symmetric_separating_axis_test_equals_the_general_one(rng):
         np.testing.assert_allclose(b[key]["points"], m["points"], atol=1e-12)
 
 
+def _axis_of_code(state, code, a, b) -> np.ndarray:
+    """World unit axis of a separating-axis code of the pair (A = ``a``, B = ``b``): face axes of
+    A, then of B, then the edge-direction pairs of A and B, row-major (``narrowphase._sat``)."""
+    s = state.shapes
+
+    def axes(body):
+        k, rot = state.kind[body], quat_to_matrix(state.quaternion[body])
+        face = s.face_axes[s.axis_start[k]:s.axis_start[k + 1]] @ rot.T
+        return face, s.edge_directions[s.direction_start[k]:s.direction_start[k + 1]] @ rot.T
+
+    (fa, da), (fb, db) = axes(a), axes(b)
+    if code < len(fa):
+        return fa[code]
+    if code < len(fa) + len(fb):
+        return fb[code - len(fa)]
+    i, j = divmod(code - len(fa) - len(fb), len(db))
+    c = np.cross(da[i], db[j])
+    return c / np.linalg.norm(c)
+
+
+def test_cached_separating_axis_separates_the_pair(rng):
+    """The axis kept per candidate pair is one along which the pair is separated beyond the alert."""
+    state, shapes, _ = random_pairs(rng, 300, gap_range=(0.021, 0.1))
+    det = Detector(skin=0.5)
+    assert det.detect(state, ALERT).n_manifolds == 0
+    codes, pair_start, pair_j = det._pair_axis.copy(), det.verlet.pair_start, det.verlet.pair_j
+    kinds = []
+    for i in range(state.n):
+        for q in range(pair_start[i], pair_start[i + 1]):
+            j, code = pair_j[q], codes[q]
+            if code < 0:  # separated along the centre line
+                continue
+            u = _axis_of_code(state, code, a=j, b=i)
+            pa = world_vertices(shapes[state.kind[j]], state.quaternion[j], state.position[j]) @ u
+            pb = world_vertices(shapes[state.kind[i]], state.quaternion[i], state.position[i]) @ u
+            assert max(pb.min() - pa.max(), pa.min() - pb.max()) > ALERT
+            n_faces = sum(np.diff(state.shapes.axis_start)[state.kind[[j, i]]])
+            kinds.append("edge" if code >= n_faces else "face")
+    # face and edge axes both occur, and the next call, unmoved, keeps them (found first)
+    assert kinds.count("face") > 50 and kinds.count("edge") > 20
+    assert det.detect(state, ALERT).n_manifolds == 0 and det.n_builds == 1
+    np.testing.assert_array_equal(det._pair_axis, codes)
+
+
 # ---------------------------------------------------------------------------------------------
 # periodic images
 

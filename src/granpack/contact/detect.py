@@ -127,6 +127,7 @@ class Detector:
             raise ValueError(f"eps_f must be > 0, got {eps_f}")
         self.eps_f = eps_f
         self._tables: _Tables | None = None
+        self._pair_axis: np.ndarray | None = None  # separating-axis cache, one code per candidate pair
         self.n_candidates = 0
         self.n_tested = 0
 
@@ -153,6 +154,7 @@ class Detector:
             raise ValueError(f"alert distance must be >= 0, got {alert}")
         if self._tables is None or self._tables.shapes is not state.shapes:
             self._tables = _Tables(state.shapes)
+            self._pair_axis = None
         tables = self._tables
         box = state.box
         limit = 2.0 * (tables.d_max + alert + self.verlet.skin)
@@ -162,7 +164,8 @@ class Detector:
             )
         shapes = state.shapes
         radius = shapes.radius[state.kind]
-        self.verlet.update(state.position, radius, box.lx, box.ly, alert)
+        if self.verlet.update(state.position, radius, box.lx, box.ly, alert) or self._pair_axis is None:
+            self._pair_axis = np.full(len(self.verlet.pair_j), -1, np.int64)
         geo = world_geometry(state.position, state.quaternion, state.kind, shapes.vertex_start, shapes.vertices,
                              shapes.face_start, shapes.face_normals, shapes.axis_start, shapes.face_axes,
                              shapes.direction_start, shapes.edge_directions)
@@ -170,7 +173,7 @@ class Detector:
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
         out = narrow_phase(state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
                            tables.half_start, tables.half, shapes.axis_start, tables.axis_support,
-                           self.verlet.pair_start, self.verlet.pair_j, box.lx, box.ly, alert, eps_f,
+                           self.verlet.pair_start, self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert, eps_f,
                            tables.max_points, prev_i, prev_j, prev_n)
         body_i, body_j, shift, normal, ctype, point_start, point, gap, tested = out
         self.n_candidates = int(self.verlet.pair_start[-1])

@@ -173,7 +173,7 @@ def _signed_gap(ox, oy, oz, ux, uy, uz, ha, hb):
 
 @jit(inline="always")
 def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, half_start, half, axis_start, support, ka,
-         kb, ox, oy, oz, alert, rin, margin, X, Y):
+         kb, ox, oy, oz, alert, rin, margin, X, Y, cached):
     """Separating-axis test between polyhedra A (centred) and B (offset ``o``).
 
     The vertices of both bodies are gathered into the scratch ``X`` (``(3, >= nA + nB)``, B's
@@ -201,12 +201,19 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
     :math:`c \\cdot o = e_A \\cdot (e_B \\times o)`, :math:`|c|^2 = 1 - (e_A \\cdot e_B)^2`), so most
     pruned axes are never formed.
 
+    ``cached`` is the axis that separated the pair at the previous call (code below, -1 if
+    none): it is tried first, and a pair it still separates by more than ``alert`` costs one axis
+    (the separating axis of a pair that stays apart changes rarely between steps).
+
     Returns:
-        ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez)``: ``far`` is True when
-        some axis separates by more than ``alert``. Otherwise the best face axis of A
-        (separation, row in ``ax``, sign), of B, and the best edge-edge axis (separation, local
+        ``(far, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, axis)``: ``far`` is True
+        when some axis separates by more than ``alert``, ``axis`` then its code (``k`` for A's
+        face axis ``aa0 + k``, ``nfa + k`` for B's ``ab0 + k``, ``nfa + nfb + i ndb + j`` for the
+        edge-direction pair ``(da0 + i, db0 + j)``, -1 for the centre line; ``nfa``, ``nfb``
+        the face-axis counts, ``ndb`` B's edge-direction count). Otherwise the best face axis of
+        A (separation, row in ``ax``, sign), of B, the best edge-edge axis (separation, local
         direction indices on A and B, and the oriented unit axis from A to B; ``se = -inf`` when
-        every edge pair is parallel).
+        every edge pair is parallel) and ``axis`` -1.
     """
     inf = math.inf
     na = a1 - a0
@@ -225,6 +232,33 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
             Y[0, nha + k], Y[1, nha + k], Y[2, nha + k] = rv[r, 0], rv[r, 1], rv[r, 2]
     else:
         _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
+    nfa = aa1 - aa0
+    nfb = ab1 - ab0
+    ndb = db1 - db0
+    if cached >= 0:
+        if cached < nfa:
+            r = aa0 + cached
+            ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
+        elif cached < nfa + nfb:
+            r = ab0 + cached - nfa
+            ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
+        else:
+            i = da0 + (cached - nfa - nfb) // ndb
+            j = db0 + (cached - nfa - nfb) % ndb
+            cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
+            cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
+            cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
+            c = cx * cx + cy * cy + cz * cz
+            if c > 1e-12:  # the two edges may have turned parallel since
+                c = 1.0 / math.sqrt(c)
+            ux, uy, uz = cx * c, cy * c, cz * c
+        if sym:
+            s, _ = _signed_gap(ox, oy, oz, ux, uy, uz, _half_support(Y, 0, nha, ux, uy, uz),
+                               _half_support(Y, nha, nha + nhb, ux, uy, uz))
+        else:
+            s, _ = _separation(X, na, nb, ux, uy, uz)
+        if s > alert:
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, cached
     # cheap first try: the centre-to-centre direction
     dd = math.sqrt(ox * ox + oy * oy + oz * oz)
     if dd > 0.0:
@@ -235,7 +269,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
         else:
             s, _ = _separation(X, na, nb, ux, uy, uz)
         if s > alert:
-            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, -1
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
         if sym:
@@ -244,7 +278,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
         else:
             s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
-            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, k - aa0
         if s > sfa:
             sfa, kfa, gfa = s, k, g
     sfb, kfb, gfb = -inf, -1, 1.0
@@ -255,7 +289,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
         else:
             s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
         if s > alert:
-            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, nfa + k - ab0
         if s > sfb:
             sfb, kfb, gfb = s, k, g
     se, ie, je, ex, ey, ez = -inf, -1, -1, 0.0, 0.0, 0.0
@@ -287,13 +321,14 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
             else:
                 s, g = _separation(X, na, nb, cx, cy, cz)
             if s > alert:
-                return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0
+                code = nfa + nfb + (i - da0) * ndb + j - db0
+                return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, code
             if s > se:
                 se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
                 t = max(sfa, sfb, se) - margin + rin - 1e-12
     if sym:
         _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
-    return False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez
+    return False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1
 
 
 @jit(inline="always")
@@ -846,7 +881,7 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 @jit
 def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support, pair_start,
-                 pair_j, lx, ly, alert, eps_f, max_points, prev_i, prev_j, prev_n):
+                 pair_j, pair_axis, lx, ly, alert, eps_f, max_points, prev_i, prev_j, prev_n):
     """Contact manifolds of all candidate pairs and of the bottom wall.
 
     Args:
@@ -860,6 +895,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         axis_start, axis_support: ``(K+1,)``, ``(NA,)`` the shape table's face-axis rows and the
             support ``max_v |a . v|`` of each kind along its own face axes ``a``, d.
         pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
+        pair_axis: ``(C,)`` per candidate pair of polyhedra, the code of the axis that separated
+            it at the previous call (-1: none), read and updated (see :func:`_sat`).
         lx, ly: periods, d.
         alert: alert distance, d.
         eps_f: feature band / rank tolerance, d.
@@ -963,7 +1000,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             else:
                 sat = _sat(rv, pv[j], pv[j + 1], pv[i], pv[i + 1], ax, pa[j], pa[j + 1], pa[i], pa[i + 1], dr, pd[j],
                            pd[j + 1], pd[i], pd[i + 1], half_start, half, axis_start, axis_support, kj, ki, ox, oy,
-                           oz, alert, inradius[kj] + inradius[ki], eps_f, X, Y)
+                           oz, alert, inradius[kj] + inradius[ki], eps_f, X, Y, pair_axis[q])
+                pair_axis[q] = sat[13]
                 if sat[0]:
                     continue
                 while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
@@ -972,7 +1010,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
                     hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
                 else:
                     hx, hy, hz = 0.0, 0.0, 0.0
-                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:], geo, tab, alert, eps_f, scr, pts, gp)
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:13], geo, tab, alert, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
             cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw)
