@@ -832,6 +832,44 @@ def test_slightly_tilted_face_on_face_is_still_triple(tilt):
     assert np.all(m["gaps"] <= ALERT)
 
 
+@pytest.mark.parametrize("tilt", [0.002, 0.01])
+def test_tilted_face_on_face_stays_triple_whatever_the_previous_edge_normal(tilt):
+    """A face-face contact reached through an edge-edge contact keeps its face manifold.
+
+    Any edge-edge axis of two faces in contact is nearly the face normal. With such an axis as
+    the previous step's normal, the temporal hysteresis must still give the face manifold (all
+    its corners, as without a previous normal), not a one-point edge-edge contact that leaves
+    the corners free to sink. (Its reference face may be the other body's.)
+    """
+    shapes, pos, quat = face_face_pair(gap=-0.001)
+    r = quat_from_axis_angle([1.0, 0.3, 0.0], tilt)
+    contact = pos[1] + quat_to_matrix(quat[1]) @ shapes[1].vertices[shapes[1].faces[largest_face(shapes[1])]].mean(0)
+    pos[1] = contact + quat_to_matrix(r) @ (pos[1] - contact)
+    quat[1] = then(quat[1], r)
+    state = make_state(shapes, [0, 1], pos, quat)
+    fresh = pair_manifold(detect(state, ALERT))
+    assert fresh["ctype"] == TRIPLE and len(fresh["gaps"]) >= 3
+    faces = [EZ, quat_to_matrix(quat[1]) @ shapes[1].face_normals[largest_face(shapes[1])]]
+    directions = []
+    for body in (0, 1):
+        v, rot = shapes[body].vertices, quat_to_matrix(quat[body])
+        directions.append([rot @ (v[b] - v[a]) for a, b in shapes[body].edges])
+    tried = 0
+    for da, db in itertools.product(*directions):
+        axis = np.cross(da, db)
+        if np.linalg.norm(axis) < 1e-9:
+            continue
+        axis /= np.linalg.norm(axis)
+        cos = float(axis @ fresh["normal"])
+        if not 0.999 < abs(cos) < 1.0 - 1e-12:  # a distinct edge axis within the hysteresis cone
+            continue
+        tried += 1
+        m = pair_manifold(detect(state, ALERT, _one_manifold([pos[0]], np.sign(cos) * axis)))
+        assert m["ctype"] == TRIPLE and len(m["gaps"]) >= 3
+        assert max(abs(m["normal"] @ f) for f in faces) > 1.0 - 1e-12  # a face axis, not the edge axis
+    assert tried >= 10
+
+
 # ---------------------------------------------------------------------------------------------
 # property-based: other convex polyhedra
 

@@ -739,6 +739,10 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 o0, o1, o2 = _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE
             elif cb >= ce:
                 o0, o1, o2 = _AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE
+            elif ca > _HINT_COS or cb > _HINT_COS:
+                # the previous edge-edge normal is also (nearly) a face axis: the faces have come
+                # into contact, and a one-point edge-edge manifold would leave their corners free
+                o0, o1, o2 = (_AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE) if ca >= cb else (_AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE)
             else:
                 o0, o1, o2 = _AXIS_EDGE, first_face, second_face
     W, ia, ib, lam, tmp, _, _, _, _, _ = scr
