@@ -700,6 +700,17 @@ def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pt
 
 
 @jit(inline="always")
+def _clamp_gaps(gp, cnt, floor):
+    """Raise the first ``cnt`` gaps to at least ``floor``; returns the smallest."""
+    low = math.inf
+    for k in range(cnt):
+        if gp[k] < floor:
+            gp[k] = floor
+        low = min(low, gp[k])
+    return low
+
+
+@jit(inline="always")
 def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pts, gp):
     """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``).
 
@@ -774,6 +785,13 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                                        buf, buf2, pts, gp)
             if cnt == 0:
                 continue
+            if sigma <= 0.0 and sk < sigma:
+                # interpenetration, this face axis preferred to the best one by the hysteresis:
+                # along it the bodies overlap by up to eps_f more than their penetration depth
+                # -sigma (a vertex below the face's plane but beside the face), so no point is
+                # given a gap below sigma and the smallest gap is the exact depth
+                gmin = _clamp_gaps(gp, cnt, sigma)
+                sk = sigma
             if abs(gmin - sk) <= tol_x:
                 return cnt, nx, ny, nz
             if sigma <= 0.0 and cnt < buf.shape[0]:
@@ -799,6 +817,8 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
         else:
             if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
                              edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
+                if sigma <= 0.0:
+                    _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
                 return 1, ex, ey, ez
     if sigma > 0.0:
         cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
