@@ -28,8 +28,17 @@ Exact gaps: for a separated pair the separating-axis value is only a lower bound
 only when its smallest gap equals its axis separation (then both equal the distance);
 otherwise the distance and closest points come from GJK (vertex-vertex, vertex-edge and parallel
 edges), giving a single point, or two points for parallel edges overlapping along a segment.
-For an interpenetrating pair the smallest gap is the separating-axis depth of the chosen axis
-(the minimum translational distance up to the hysteresis ``eps_f``).
+For an interpenetrating pair the smallest gap is the penetration depth (minus the minimum
+translational distance, the best separating-axis value ``σ <= 0``). When the hysteresis keeps a
+face or edge axis that is not the best one, no point's gap is set below ``σ``: along such an axis
+the bodies overlap by up to ``eps_f`` more (a vertex below the face's plane but beside the face),
+and those phantom overlaps, up to 1e-3 d, had been what the position correction of the
+integrator mostly chased (measured on a collapsing pile: 99 % of the overlap growth between the
+predicted and the detected configuration).
+
+Temporal coherence: a pair keeps the code of the axis that last separated it (tried first, see
+:func:`_sat`), and a touching pair's previous normal orders the manifold candidates (a previous
+edge-edge normal that is also nearly a face axis selects the face: the faces have met).
 
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
