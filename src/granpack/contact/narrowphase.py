@@ -244,41 +244,36 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
     nfa = aa1 - aa0
     nfb = ab1 - ab0
     ndb = db1 - db0
-    if cached >= 0:
-        if cached < nfa:
-            r = aa0 + cached
-            ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
-        elif cached < nfa + nfb:
-            r = ab0 + cached - nfa
-            ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
+    # cheap first tries: the cached axis, then the centre-to-centre direction
+    for attempt in range(2):
+        if attempt == 0:
+            if cached < 0:
+                continue
+            if cached < nfa + nfb:
+                r = aa0 + cached if cached < nfa else ab0 + cached - nfa
+                ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
+            else:
+                i = da0 + (cached - nfa - nfb) // ndb
+                j = db0 + (cached - nfa - nfb) % ndb
+                cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
+                cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
+                cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
+                c = cx * cx + cy * cy + cz * cz
+                if c > 1e-12:  # the two edges may have turned parallel since
+                    c = 1.0 / math.sqrt(c)
+                ux, uy, uz = cx * c, cy * c, cz * c
         else:
-            i = da0 + (cached - nfa - nfb) // ndb
-            j = db0 + (cached - nfa - nfb) % ndb
-            cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
-            cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
-            cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
-            c = cx * cx + cy * cy + cz * cz
-            if c > 1e-12:  # the two edges may have turned parallel since
-                c = 1.0 / math.sqrt(c)
-            ux, uy, uz = cx * c, cy * c, cz * c
+            dd = math.sqrt(ox * ox + oy * oy + oz * oz)
+            if dd == 0.0:
+                continue
+            ux, uy, uz = ox / dd, oy / dd, oz / dd
         if sym:
             s, _ = _signed_gap(ox, oy, oz, ux, uy, uz, _half_support(Y, 0, nha, ux, uy, uz),
                                _half_support(Y, nha, nha + nhb, ux, uy, uz))
         else:
             s, _ = _separation(X, na, nb, ux, uy, uz)
         if s > alert:
-            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, cached
-    # cheap first try: the centre-to-centre direction
-    dd = math.sqrt(ox * ox + oy * oy + oz * oz)
-    if dd > 0.0:
-        ux, uy, uz = ox / dd, oy / dd, oz / dd
-        if sym:
-            s, _ = _signed_gap(ox, oy, oz, ux, uy, uz, _half_support(Y, 0, nha, ux, uy, uz),
-                               _half_support(Y, nha, nha + nhb, ux, uy, uz))
-        else:
-            s, _ = _separation(X, na, nb, ux, uy, uz)
-        if s > alert:
-            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, -1
+            return True, 0.0, -1, 0.0, 0.0, -1, 0.0, 0.0, -1, -1, 0.0, 0.0, 0.0, cached if attempt == 0 else -1
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
         if sym:
