@@ -818,14 +818,20 @@ def test_contact_types_with_a_mask_and_consistency_with_detection(rng):
     np.testing.assert_array_equal(contact_types(det, 1e-3 / 3.0), det.ctype)
 
 
-@pytest.mark.parametrize("tilt", [0.002, 0.01])
-def test_slightly_tilted_face_on_face_is_still_triple(tilt):
-    shapes, pos, quat = face_face_pair(gap=0.002)
-    # rotate the upper grain about a horizontal axis through its contact face centre
+def tilted_face_face_pair(gap, tilt):
+    """:func:`face_face_pair` with the upper grain turned by ``tilt`` (rad) about a horizontal
+    axis through its contact face's centre."""
+    shapes, pos, quat = face_face_pair(gap=gap)
     r = quat_from_axis_angle([1.0, 0.3, 0.0], tilt)
     contact = pos[1] + quat_to_matrix(quat[1]) @ shapes[1].vertices[shapes[1].faces[largest_face(shapes[1])]].mean(0)
     pos[1] = contact + quat_to_matrix(r) @ (pos[1] - contact)
     quat[1] = then(quat[1], r)
+    return shapes, pos, quat
+
+
+@pytest.mark.parametrize("tilt", [0.002, 0.01])
+def test_slightly_tilted_face_on_face_is_still_triple(tilt):
+    shapes, pos, quat = tilted_face_face_pair(0.002, tilt)
     m = pair_manifold(detect(make_state(shapes, [0, 1], pos, quat), ALERT))
     assert m["ctype"] == TRIPLE and len(m["gaps"]) >= 3
     assert np.ptp(m["gaps"]) > 0.0  # the gaps differ along the tilt
@@ -841,11 +847,7 @@ def test_tilted_face_on_face_stays_triple_whatever_the_previous_edge_normal(tilt
     its corners, as without a previous normal), not a one-point edge-edge contact that leaves
     the corners free to sink. (Its reference face may be the other body's.)
     """
-    shapes, pos, quat = face_face_pair(gap=-0.001)
-    r = quat_from_axis_angle([1.0, 0.3, 0.0], tilt)
-    contact = pos[1] + quat_to_matrix(quat[1]) @ shapes[1].vertices[shapes[1].faces[largest_face(shapes[1])]].mean(0)
-    pos[1] = contact + quat_to_matrix(r) @ (pos[1] - contact)
-    quat[1] = then(quat[1], r)
+    shapes, pos, quat = tilted_face_face_pair(-0.001, tilt)
     state = make_state(shapes, [0, 1], pos, quat)
     fresh = pair_manifold(detect(state, ALERT))
     assert fresh["ctype"] == TRIPLE and len(fresh["gaps"]) >= 3
