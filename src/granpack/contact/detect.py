@@ -12,8 +12,8 @@ API:
 
 Every pair with a gap (exact distance, or negative penetration depth) of at most ``alert`` gives
 one manifold: bodies ``i < j`` (``j = -1`` for the bottom wall), the image shift of ``j``, the
-normal from ``j`` to ``i``, one to four points with their gaps, and the contact type 1/2/3 from
-the rank of the points (PHYSICS.md §3.5). Manifolds are ordered by ``i``, then ``j`` with the
+normal from ``j`` to ``i``, its points with their gaps (every vertex of a contact polygon), and
+the contact type 1/2/3 from the rank of the points (PHYSICS.md §3.5). Manifolds are ordered by ``i``, then ``j`` with the
 wall first, independently of the Verlet state, so results do not depend on the skin.
 
 ``previous`` (the manifolds of the previous step, e.g. the solver's last ``ContactSet``) gives

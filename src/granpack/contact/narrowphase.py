@@ -1,7 +1,7 @@
 """Narrow phase: one contact manifold per candidate pair, for every pair of shape kinds.
 
 A manifold is one unit normal ``n`` (from the antagonist ``j`` towards the candidate ``i``, see
-:mod:`granpack.contact.contacts`) and one to four points, each with its own signed gap (> 0 open,
+:mod:`granpack.contact.contacts`) and one or more points, each with its own signed gap (> 0 open,
 < 0 interpenetration, in d), kept when the gap is at most the alert distance. Kernels work in a
 frame centred on the antagonist's image ``x_j + shift`` (called body A) with the candidate ``i``
 (body B) at offset ``x_i - x_j - shift``; the normal points from A to B.
@@ -18,8 +18,8 @@ Pair kinds (PHYSICS.md §3.2-3.3):
   distance; for two centrally symmetric bodies (every pinacoid) each axis reads only one vertex of
   each antipodal pair, and a body's own face axes a constant support. The manifold is then
   built from the best axis: for a face axis the incident face of the other body is clipped
-  against the reference face's side planes (Sutherland-Hodgman) and
-  more than four points are reduced to four that keep the contact area; for an edge axis it is the
+  against the reference face's side planes (Sutherland-Hodgman), every vertex of the clipped
+  polygon being a point (up to eight for two pinacoid faces); for an edge axis it is the
   closest-point pair of the two supporting edges. Face axes are preferred unless an edge axis is
   better by more than ``eps_f`` (hysteresis, Box2D/Bullet practice).
 
@@ -40,6 +40,12 @@ Temporal coherence: a pair keeps the code of the axis that last separated it (tr
 :func:`_sat`), and a touching pair's previous normal orders the manifold candidates (a previous
 edge-edge normal that is also nearly a face axis selects the face: the faces have met).
 
+No point reduction: keeping four of the clipped polygon's vertices (the deepest and the three
+spanning the largest area, PHYSICS.md §3.3, optional there) left the others unconstrained, and a
+grain rocking about the kept ones sank them into its neighbour by about 1e-7 d per step even in a
+pile at rest (the demo pile at t = 60, 1000 further steps: 42 pairs 1e-5 to 1.2e-4 d deeper; with
+every vertex kept, none deeper by more than 1e-5 d).
+
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
 """
@@ -55,10 +61,7 @@ from granpack.contact._gjk import gjk_distance
 from granpack.contact.contacts import manifold_type_nb
 from granpack.rotations import quat_to_matrix_nb
 
-__all__ = ["world_geometry", "narrow_phase", "MAX_POINTS"]
-
-#: at most this many points per manifold
-MAX_POINTS = 4
+__all__ = ["world_geometry", "narrow_phase"]
 
 _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE = 0, 1, 2
 #: |cos| between the previous normal and an axis above which the axis counts as the previous one
@@ -514,13 +517,12 @@ def _line_params(p1x, p1y, p1z, d1x, d1y, d1z, p2x, p2y, p2z, d2x, d2y, d2z):
 
 
 @jit(inline="always")
-def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw):
-    """Merge points closer than ``eps_pt`` and keep at most four that span the largest area.
+def _merge_points(pts, gp, cnt, eps_pt):
+    """Merge points closer than ``eps_pt`` (the deeper gap kept); returns the new count.
 
-    Order of choice: the deepest point, the farthest from it, the one maximising the triangle
-    area, then the one adding the most area (all measured in the plane normal to n).
-    ``uw`` is a ``(>= cnt, 3)`` scratch (in-plane coordinates, then the kept points).
-    Returns the new count; the kept points are moved to the front of ``pts``/``gp``.
+    No other point is dropped: every vertex of a clipped contact polygon is a constraint of its
+    own (a point left out is free to sink when the grain rocks about the others, see the module
+    docstring).
     """
     m = 0
     for k in range(cnt):
@@ -538,69 +540,7 @@ def _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw):
         pts[m, 0], pts[m, 1], pts[m, 2] = pts[k, 0], pts[k, 1], pts[k, 2]
         gp[m] = gp[k]
         m += 1
-    if m <= MAX_POINTS:
-        return m
-    # in-plane coordinates (u, w) on a tangent basis
-    tx, ty, tz, sx, sy, sz = _tangents(nx, ny, nz)
-    for k in range(m):
-        uw[k, 0] = pts[k, 0] * tx + pts[k, 1] * ty + pts[k, 2] * tz
-        uw[k, 1] = pts[k, 0] * sx + pts[k, 1] * sy + pts[k, 2] * sz
-    i0 = 0
-    for k in range(m):
-        if gp[k] < gp[i0]:
-            i0 = k
-    i1, best = -1, -1.0
-    for k in range(m):
-        d = (uw[k, 0] - uw[i0, 0]) ** 2 + (uw[k, 1] - uw[i0, 1]) ** 2
-        if k != i0 and d > best:
-            i1, best = k, d
-    i2, best, sgn = -1, -1.0, 1.0
-    for k in range(m):
-        if k == i0 or k == i1:
-            continue
-        a = (uw[i1, 0] - uw[i0, 0]) * (uw[k, 1] - uw[i0, 1]) - (uw[i1, 1] - uw[i0, 1]) * (uw[k, 0] - uw[i0, 0])
-        if abs(a) > best:
-            i2, best, sgn = k, abs(a), 1.0 if a >= 0.0 else -1.0
-    tri = (i0, i1, i2)
-    i3, best = -1, -1.0
-    for k in range(m):
-        if k == i0 or k == i1 or k == i2:
-            continue
-        extra = 0.0
-        for e in range(3):
-            pa = tri[e]
-            pb = tri[(e + 1) % 3]
-            a = sgn * ((uw[pb, 0] - uw[pa, 0]) * (uw[k, 1] - uw[pa, 1])
-                       - (uw[pb, 1] - uw[pa, 1]) * (uw[k, 0] - uw[pa, 0]))
-            extra = max(extra, -a)
-        if extra > best:
-            i3, best = k, extra
-    chosen = (i0, i1, i2, i3)
-    g0, g1, g2, g3 = gp[i0], gp[i1], gp[i2], gp[i3]
-    for c in range(MAX_POINTS):
-        uw[c, 0], uw[c, 1], uw[c, 2] = pts[chosen[c], 0], pts[chosen[c], 1], pts[chosen[c], 2]
-    for c in range(MAX_POINTS):
-        pts[c, 0], pts[c, 1], pts[c, 2] = uw[c, 0], uw[c, 1], uw[c, 2]
-    gp[0], gp[1], gp[2], gp[3] = g0, g1, g2, g3
-    return MAX_POINTS
-
-
-@jit
-def _tangents(nx, ny, nz):
-    """Orthonormal ``t, s`` with ``(n, t, s)`` right-handed; ``t`` avoids the axis most aligned with n."""
-    ax_, ay_, az_ = abs(nx), abs(ny), abs(nz)
-    if ax_ <= ay_ and ax_ <= az_:
-        tx, ty, tz = 0.0, nz, -ny
-    elif ay_ <= az_:
-        tx, ty, tz = -nz, 0.0, nx
-    else:
-        tx, ty, tz = ny, -nx, 0.0
-    tn = math.sqrt(tx * tx + ty * ty + tz * tz)
-    tx, ty, tz = tx / tn, ty / tn, tz / tn
-    sx = ny * tz - nz * ty
-    sy = nz * tx - nx * tz
-    sz = nx * ty - ny * tx
-    return tx, ty, tz, sx, sy, sz
+    return m
 
 
 @jit
@@ -927,14 +867,14 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
     normal = np.empty((cap, 3))
     ctype = np.empty(cap, np.int64)
     pstart = np.zeros(cap + 1, np.int64)
-    point = np.empty((MAX_POINTS * cap, 3))
-    gap = np.empty(MAX_POINTS * cap)
+    point = np.empty((max_points * cap, 3))
+    gap = np.empty(max_points * cap)
     scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
            np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)), np.empty((3, 2 * max_points)),
            np.empty(2 * max_points))
     one = np.zeros((1, 3))
     pv, pa, pd, rv, ax, dr = geo[0], geo[2], geo[3], geo[4], geo[6], geo[7]
-    X, uw = scr[8], scr[7]
+    X = scr[8]
     Y = np.empty((3, 2 * max_points))
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
@@ -965,7 +905,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             else:
                 cnt = _poly_wall(i, zi, geo, alert, pts, gp)
             if cnt > 0:
-                cnt = _reduce_points(pts, gp, cnt, 0.0, 0.0, 1.0, eps_pt, uw)
+                cnt = _merge_points(pts, gp, cnt, eps_pt)
                 body_i[m], body_j[m] = i, -1
                 shift[m, 0], shift[m, 1], shift[m, 2] = 0.0, 0.0, 0.0
                 normal[m, 0], normal[m, 1], normal[m, 2] = 0.0, 0.0, 1.0
@@ -1021,7 +961,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
                 cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:13], geo, tab, alert, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
-            cnt = _reduce_points(pts, gp, cnt, nx, ny, nz, eps_pt, uw)
+            cnt = _merge_points(pts, gp, cnt, eps_pt)
             body_i[m], body_j[m] = i, j
             shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
             normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
