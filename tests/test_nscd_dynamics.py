@@ -26,6 +26,7 @@ from granpack import Box, ShapeTable, Sphere
 from granpack.contact import Detector, detect
 from granpack.deposit import deposit
 from granpack.nscd import (
+    CORRECTED_OVERLAP,
     StepParameters,
     advance,
     assemble,
@@ -298,7 +299,7 @@ def test_settling_pile_overlaps_stay_small():
 def test_position_correction_translates_and_never_turns_a_grain():
     """A pinacoid on one vertex, 0.01 d into the wall, at rest: one step with ``overlap_slop`` 1e-4 d.
 
-    The correction lifts it (lowest point back to about -slop/2) by a translation only: the
+    The correction lifts it (lowest point back to about -0.1 slop) by a translation only: the
     grain turns by exactly ``θ h |ω^{n+1}|`` (the velocity update), not by the ~0.02 rad a
     rotation about the contact would take (the pumping that rotational projection caused on
     small grains wedged between large ones, :mod:`granpack.nscd.integrator`).
@@ -406,10 +407,10 @@ def test_step_parameters_reject_bad_values_and_bound_the_correction_budget():
     assert StepParameters(tolerance=3e-4).correction_options.tolerance == 3e-4
 
 
-@pytest.mark.parametrize(("overlap", "lift"), [(5e-4, 5e-4 - 5e-5), (0.01, 1e-3)])
-def test_position_correction_lifts_to_half_the_slop_at_most_one_correction_step_per_step(overlap, lift):
+@pytest.mark.parametrize(("overlap", "lift"), [(5e-4, 5e-4 - CORRECTED_OVERLAP * 1e-4), (0.01, 1e-3)])
+def test_position_correction_lifts_to_the_corrected_overlap_at_most_one_correction_step_per_step(overlap, lift):
     """A sphere at rest ``overlap`` into the wall, ``overlap_slop`` 1e-4 d: one step lifts it to
-    an overlap of slop/2, or by ``correction_step`` (1e-3 d) when more is needed (the bound that
+    an overlap of ``CORRECTED_OVERLAP`` slop, or by ``correction_step`` (1e-3 d) when more is needed (the bound that
     stops the correction/IQS treadmill, :mod:`granpack.nscd.integrator`); its velocity stays 0."""
     ball = Sphere(1.0)
     state = make_state(ball, [[0.0, 0.0, 0.5 - overlap]])
@@ -424,7 +425,7 @@ def test_capped_position_correction_never_digs_a_new_overlap():
     0.002 d into C. The correction lifts B by 0.02 d and pushes C towards B by 0.001 d; with the
     bound of 1e-3 d per step, scaling each body alone (B by 1/20, C not at all) drove C 6e-4 d
     into B. The second pass (B held, :mod:`granpack.nscd.integrator`) keeps every contact that
-    was not overlapping at >= -slop/2 while the overlaps shrink, C-D by more than a common
+    was not overlapping at >= -0.1 slop while the overlaps shrink, C-D by more than a common
     factor for all bodies would allow (1e-4 d)."""
     slop = 1e-4
     start = np.array([[0.0, 0.0, 0.5], [0.0, 0.0, 1.48], [1.0, 0.0, 1.48], [1.998, 0.0, 1.48]])
@@ -445,8 +446,8 @@ def test_capped_position_correction_never_digs_a_new_overlap():
     assert info.correction_iterations > 0
     assert state.position[1, 2] - start[1, 2] == pytest.approx(1e-3, abs=1e-6)  # the longest translation
     for pair, gap in before.items():
-        if gap >= -0.5 * slop:
-            assert after[pair] >= -0.5 * slop - 1e-9, pair
+        if gap >= -CORRECTED_OVERLAP * slop:
+            assert after[pair] >= -CORRECTED_OVERLAP * slop - 1e-9, pair
         else:
             assert after[pair] > gap + 5e-5, pair
     assert after[(2, 3)] > before[(2, 3)] + 5e-4

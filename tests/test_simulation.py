@@ -259,14 +259,33 @@ def test_thin_grains_poured_into_a_narrow_cell_do_not_pass_through_each_other(tm
     summary = run_packing(config, tmp_path, progress=False)
     assert summary["split_steps"] > 0
     assert summary["nlgs"]["solves"] > summary["steps"]
-    # measured: 0.014 d during the run (0.020 without splitting); at the end, while the pile still
-    # moves, mean 1.0e-4 d and max 5.0e-3 d: overlaps below the safety-net slop (5e-3 d) are no
-    # longer corrected once grains are slow, and the correction moves a grain by at most 1e-3 d
-    # per step (granpack.nscd.integrator)
-    assert summary["max_overlap_during_run"] < 0.015
+    # a grain passing through a plate (thickness 0.15 d) overlaps it by half that on the way.
+    # Measured: 0.017 d at worst during the run (one impact; 0.013 without splitting on this
+    # trajectory, 0.020 on the one of an earlier version); at the end, while the pile still
+    # moves, max 1.0e-3 d and mean 2.3e-5 d (the position correction, granpack.nscd.integrator,
+    # moves a grain by at most 1e-3 d per step)
+    assert summary["max_overlap_during_run"] < 0.05
     final_gaps = read_packing(tmp_path / "final.gsd").contacts.gap
-    assert summary["final"]["max_overlap"] < 5e-3 + 1e-3
-    assert -final_gaps[final_gaps < 0].mean() < 2e-4
+    assert summary["final"]["max_overlap"] < 2e-3
+    assert -final_gaps[final_gaps < 0].mean() < 1e-4
     # the stored impulses are those of the last (sub)step: its length goes with them
     k = 5e-3 / read_packing(tmp_path / "final.gsd").time_step
     assert k == pytest.approx(round(k)) and round(k) >= 1
+
+
+@pytest.mark.parametrize("slop", [None, 5e-3])
+def test_default_slop_keeps_a_settling_pinacoid_pile_below_1e_4_d_of_overlap(tmp_path, slop):
+    # 60 isometric pinacoids poured and settled for 12 sqrt(d/g) with the default protocol: every
+    # overlap of the final contacts below 1e-4 d (measured 7.7e-5 d); with a slop of 5e-3 d the
+    # same pile keeps the overlaps made while it settles (measured 4.2e-4 d; granpack.nscd.integrator)
+    raw = {"seed": 4, "n_particles": 60, "lateral_size": 2.25, "equilibrium": {"max_time": 12.0},
+           "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 1.0], "volume_fraction": 1.0}]}
+    if slop is not None:
+        raw["solver"] = {"overlap_slop": slop}
+    summary = run_packing(load_config_dict(raw), tmp_path, progress=False)
+    gaps = read_packing(tmp_path / "final.gsd").contacts.gap
+    assert len(gaps) > 300 and summary["final"]["max_overlap"] == pytest.approx(max(0.0, -gaps.min()))
+    if slop is None:
+        assert summary["final"]["max_overlap"] < 1e-4
+    else:
+        assert summary["final"]["max_overlap"] > 3e-4

@@ -174,16 +174,17 @@ class SolverConfig(_Model):
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
     overlap_slop: _Number = Field(
-        default=5e-3,
+        default=1e-4,
         ge=0,
-        description="Overlap above which positions are corrected after a step (to half of it), d; "
-        "0: none (pure velocity-level law, as LMGC90). The default is a safety net against the deep "
-        "overlaps of impacts; a small value (1e-4) keeps a pinacoid pile agitated (examples/README.md).",
+        description="Overlap above which positions are corrected after a step (to 0.1 of it), d; "
+        "0: none (pure velocity-level law, as LMGC90). The default keeps every overlap of a pile at "
+        "rest below about 1e-4 d; 5e-3 leaves overlaps of up to about 5e-3 d.",
     )
     pour_overlap_slop: _Number = Field(
         default=1e-4,
         ge=0,
-        description="The same while grains move fast (alert distance raised above alert_distance), d.",
+        description="The same while grains move fast (alert distance raised above alert_distance), d; "
+        "the smaller of the two applies then.",
     )
 
 

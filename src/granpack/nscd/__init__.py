@@ -10,12 +10,13 @@
 
 from __future__ import annotations
 
-from granpack.nscd.integrator import Prediction, StepInfo, StepParameters, advance, predict, step
+from granpack.nscd.integrator import CORRECTED_OVERLAP, Prediction, StepInfo, StepParameters, advance, predict, step
 from granpack.nscd.nlgs import NLGSOptions, SolverInfo, solve
 from granpack.nscd.problem import ContactProblem, assemble, tangent_frame
 from granpack.nscd.rigid import kinetic_energy, potential_energy, required_alert, total_energy, world_inverse_inertia
 
 __all__ = [
+    "CORRECTED_OVERLAP",
     "step",
     "predict",
     "advance",

@@ -18,11 +18,12 @@ and when some overlap exceeds the slop ``s`` (``min g^end < -s``), a post-step p
 (post-stabilisation, Cline & Pai 2003) solves, with the same NLGS, the linear complementarity
 problem for pseudo-impulses ``p`` whose 'velocities' are translations:
 
-.. math:: 0 \\le p_α \\perp g^{end}_α + (H_x^T M^{-1} H_x p)_α + s/2 \\ge 0, \\qquad
+.. math:: 0 \\le p_α \\perp g^{end}_α + (H_x^T M^{-1} H_x p)_α + κ s \\ge 0, \\qquad
           δx = M^{-1} H_x p, \\quad δφ = 0
 
 (``H_x`` the translational rows of ``H``: ``n`` on body i, ``-n`` on j), i.e. the smallest
-mass-weighted translations that bring every linearised gap to ``>= -s/2``. Rotations are left
+mass-weighted translations that bring every linearised gap to ``>= -κ s``, with ``κ`` =
+``CORRECTED_OVERLAP`` (0.1: nearly the whole overlap, see below). Rotations are left
 out on purpose: in the mass metric a rotation of a small grain is cheap, and a small grain wedged
 between larger ones was turned by 20-30 degrees per step, far outside the linearisation, into
 its other neighbours (overlaps of 0.05 d that the next projection moved elsewhere, a pile kept
@@ -33,9 +34,9 @@ over several steps):
 
 1. the projection above, each body's translation then scaled down to ``correction_step``;
 2. if some body was bounded, the bounded bodies are held still (inverse mass 0) and the others solve
-   the same projection with offsets ``max(g^{end}_α + s/2, 0) + n_α·(δx_i - δx_j)``: no contact
+   the same projection with offsets ``max(g^{end}_α + κ s, 0) + n_α·(δx_i - δx_j)``: no contact
    may end deeper than it was before the correction, nor a non-overlapping one below
-   ``-s/2``; their translations are scaled by one common factor to ``correction_step``.
+   ``-κ s``; their translations are scaled by one common factor to ``correction_step``.
 
 Pass 1's bound alone is inconsistent: a grain lifted by a deep overlap below it (scaled down 20
 times) no longer makes room for a neighbour pushed sideways into it by a small overlap (not
@@ -68,32 +69,45 @@ contact, which :class:`StepInfo` reports as ``correction_energy`` so that energy
 account for it. Overlaps then stay below about ``s`` (plus the detection and linearisation
 error).
 
-Where the overlaps come from (2026-11-24, the demo pile of 300 isometric pinacoids; each step's
-predicted end gaps ``g^{end} + n·(δx_i - δx_j)`` compared with a detection at the end
-configuration; whole runs with ``benchmarks/overlap_study.py``):
+Where the overlaps come from (measured on the demo pile, 300 isometric pinacoids, by comparing
+each step's predicted end gaps ``g^{end} + n·(δx_i - δx_j)`` with a detection at the end
+configuration, and by continuing a pile at rest; ``benchmarks/overlap_study.py``):
 
+- Points left out of a contact: the narrow phase reduced a clipped contact polygon (up to eight
+  vertices for two pinacoid faces) to four points, and a grain rocking about those sank the
+  others into its neighbour, even in a pile at rest (1000 steps from the demo pile at
+  t = 60: 42 pairs 1e-5 to 1.2e-4 d deeper). Every vertex is now a point
+  (:mod:`granpack.contact.narrowphase`): no pair deeper by more than 1e-5 d. With the
+  reduction, a small ``s`` kept the correction busy at rest (16 % of the steps, 1300 NLGS sweeps
+  per step, the pile never at rest: largest net force 3e-2 d^2 P after 150 sqrt(d/g)).
+- Phantom overlaps: along the face normal that the axis hysteresis keeps (within ``eps_f`` =
+  1e-3 d of the best separating axis) a tilted face-on-face pair overlapped by up to 1e-3 d more
+  than its penetration depth, and the correction pushed the grains along the face normal by
+  them (``s`` = 1e-4 with them: correction at every step, kinetic energy 3.6e-2 m g d, 64 m g d
+  added in 60 sqrt(d/g)). Gaps are never below the penetration depth now.
 - A face-face contact that had begun as an edge-edge one was kept as a single point by the
-  contact hysteresis, its corners free to sink: 45 % of the overlap growth between steps of a
-  collapsing pile. Fixed in :mod:`granpack.contact.narrowphase`.
-- Most of the rest is not penetration: along the face normal that the axis hysteresis keeps
-  (within ``eps_f`` = 1e-3 d of the best separating axis) a tilted face-on-face pair overlaps by
-  up to 1e-3 d more than its penetration depth. Those 'phantom' overlaps are what a small ``s``
-  makes the correction push at every step (``s`` = 1e-4: correction at every step, kinetic
-  energy 3.6e-2 m g d and 64 m g d added in 60 sqrt(d/g)).
-- The real growth is made while the pile settles: the NLGS residual at the settling tolerance
-  (1e-3) ratchets (an approaching residual velocity deepens a closed contact, an opening one is
-  undone by the gap anticipation), and with θ = ½ a rocking face-on-face contact sinks by about
-  ``(1-θ) h |u_n|`` per rocking cycle (the prediction ``x^{TT}`` moves a corner that the previous
-  step did not constrain into overlap).
+  contact hysteresis, its corners free to sink (45 % of the overlap growth between steps of a
+  collapsing pile); fixed in the narrow phase.
+- What remains is made while the pile settles (the NLGS residual at the settling tolerance
+  1e-3, impacts) and is what the correction removes.
 
-Tried and reverted: gaps floored at the true penetration depth (no phantoms) with the correction
-to ``0.1 s`` and ``s`` = 1e-4 kept every overlap of the demo below 1e-4 d (max 0.7-1.0e-4, mean
-4-5e-6 d over three seeds, about twice the NLGS sweeps), but the pile ended far from
-equilibrium (largest net force 7.7e-2 d^2 P and kinetic criterion 2e-4 on the demo, against
-5.5e-4 and 0 with the default); with the default ``s`` the floored gaps gave deeper true overlaps
-(max 4.3-4.8e-3 d) and net forces of 0.8-1.9e-2. With the default the demo ends with true
-overlaps (penetration depths) of max 1.6-4.0e-3 d and mean 1.0-1.3e-4 d per contact, largest
-net force 4.1e-4 to 1.2e-3 d^2 P (three seeds). Tables in benchmarks/README.md.
+Measured on the demo (60 sqrt(d/g), seeds 1, 2, 3; penetration depths of the final touching
+pairs, d; largest net force on a grain, d^2 P; NLGS sweeps per step; tables in
+benchmarks/README.md):
+
+- default (every polygon vertex a point, exact depths, ``s`` = 1e-4, ``κ`` = 0.1): max depth
+  4.9e-5, 8.7e-5, 5.5e-5; mean per pair 8.9e-6, 1.1e-5, 9.4e-6; net force 3.3e-4, 2.6e-4,
+  6.7e-4; 88, 89, 81 sweeps;
+- before (four points, depths along the hysteresis face axis, ``s`` = 5e-3 corrected to
+  ``s/2``): max depth 2.9e-3, 4.0e-3, 1.6e-3; mean 1.3e-4, 1.3e-4, 1.0e-4; net force 5.5e-4,
+  4.1e-4, 1.2e-3; 59, 155, 76 sweeps.
+
+The corrections die out as the pile comes to rest (none after about 45-55 sqrt(d/g)), the NLGS
+then converging in its first check (10 sweeps). The target ``κ`` matters as much as ``s``: a
+correction that leaves half the slop holds many contacts at ``-s/2`` and the velocity NLGS then
+needed about 1700 sweeps per step at rest; one that leaves a tenth (``CORRECTED_OVERLAP``)
+brings the contacts back nearly to touching; one that leaves 0.9 of it corrected at every step
+and kept the pile moving (measured with the four-point manifolds).
 
 The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by
 Gauss–Seidel converges slowly (on
@@ -130,7 +144,10 @@ from granpack.nscd.rigid import predict_kernel, update_kernel
 from granpack.nscd.warmstart import warm_impulses
 from granpack.state import ParticleState
 
-__all__ = ["StepParameters", "StepInfo", "Prediction", "predict", "advance", "step"]
+__all__ = ["StepParameters", "StepInfo", "Prediction", "predict", "advance", "step", "CORRECTED_OVERLAP"]
+
+#: overlap left by a position correction, as a fraction of the slop (module docstring)
+CORRECTED_OVERLAP = 0.1
 
 
 @dataclass(frozen=True)
@@ -146,11 +163,9 @@ class StepParameters:
         max_iterations: NLGS sweep budget per solve.
         check_every: sweeps per convergence check.
         alert: detection distance, d.
-        overlap_slop: overlap above which positions are corrected (corrected to half of it), d;
-            ``0`` disables the correction. The default (5e-3 d) makes it a safety net against the
-            deep overlaps of impacts; a small value (1e-4) makes it push the phantom overlaps of
-            hysteresis face axes at every step and keeps a pinacoid pile agitated (module
-            docstring).
+        overlap_slop: overlap above which positions are corrected (to ``CORRECTED_OVERLAP`` of it), d;
+            ``0`` disables the correction. The default (1e-4 d) keeps every overlap of a pile at
+            rest below about 1e-4 d; 5e-3 leaves overlaps of up to 5e-3 d (module docstring).
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
@@ -165,7 +180,7 @@ class StepParameters:
     max_iterations: int = 2000
     check_every: int = 10
     alert: float = 0.05
-    overlap_slop: float = 5e-3
+    overlap_slop: float = 1e-4
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
@@ -343,13 +358,13 @@ def advance(
 def _position_correction(problem, gap_end: np.ndarray, params: StepParameters) -> tuple[np.ndarray, int]:
     """Bounded post-step projection (see the module docstring): ``(displacements (N + 1, 6), sweeps)``.
 
-    Pass 1 projects every linearised gap to ``>= -s/2`` and bounds each body's translation to
+    Pass 1 projects every linearised gap to ``>= -κ s`` and bounds each body's translation to
     ``correction_step``. When a bound binds, pass 2 holds the bounded bodies still and moves the
     others so that no contact ends deeper than before the correction (what pass 1's bound dug),
     its translations scaled by one common factor to the same bound.
     """
     c = params.correction_step
-    target = gap_end + 0.5 * params.overlap_slop
+    target = gap_end + CORRECTED_OVERLAP * params.overlap_slop
     first = problem.projection(target)
     pseudo, info = solve(first, params.correction_options)
     sweeps = info.iterations
