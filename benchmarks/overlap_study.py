@@ -4,12 +4,14 @@ Runs a config (the packaged demo by default) to ``--time`` with ``--set section.
 overrides and prints JSON: the overlaps ``max(0, -gap)`` over all contact points of the final
 contacts (max, mean, 99th percentile, points above 1e-4 d), the kinetic energy and wall force at
 the end, the penetration depths of the final pairs (max, mean, pairs deeper than 1e-4 d), the
-equilibrium criteria and status, the NLGS sweeps, the position corrections and, per interval of ``--every`` sqrt(d/g),
-the mean NLGS sweeps, the fraction of corrected steps and the unconverged steps.
+equilibrium criteria and status, the NLGS sweeps, the position corrections and, per interval of
+``--every`` sqrt(d/g), the mean NLGS sweeps, the fraction of corrected steps and the unconverged
+steps.
 
     python benchmarks/overlap_study.py --time 60 --set solver.overlap_slop=1e-4 --seed 2
 
-Results are tabled in the module docstring of ``granpack.nscd.integrator``.
+Results are tabled in benchmarks/README.md and the module docstring of
+``granpack.nscd.integrator``.
 """
 
 from __future__ import annotations

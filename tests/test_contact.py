@@ -942,3 +942,19 @@ def test_polyhedra_gap_property(names, seed, target):
     assert m["gaps"].min() == pytest.approx(g, abs=1e-9)
     if len(m["gaps"]) == 1 and g > 0:
         np.testing.assert_allclose(m["normal"], -direction, atol=1e-6)
+
+
+def test_merge_points_drops_only_duplicates_and_keeps_the_deeper_gap():
+    from granpack.contact.narrowphase import _merge_points
+
+    angles = np.arange(8) * math.pi / 4 + 0.1
+    ring = np.c_[np.cos(angles), np.sin(angles), np.full(8, 0.3)]
+    pts = np.vstack([ring, ring[5] + 1e-9, ring[2] - 1e-9])  # duplicates of points 5 and 2
+    gp = np.array([0.01, 0.02, 0.0, -0.01, 0.015, 0.012, 0.01, 0.005, -0.02, 0.03])
+    kept, kept_gaps = pts.copy(), gp.copy()
+    cnt = _merge_points(kept, kept_gaps, len(pts), 1e-6)
+    assert cnt == 8  # every distinct vertex of the octagon stays
+    np.testing.assert_array_equal(kept[:8], ring)
+    expected = gp[:8].copy()
+    expected[5] = -0.02  # the deeper gap of the merged pair
+    np.testing.assert_array_equal(kept_gaps[:8], expected)

@@ -28,8 +28,8 @@ Exact gaps: for a separated pair the separating-axis value is only a lower bound
 only when its smallest gap equals its axis separation (then both equal the distance);
 otherwise the distance and closest points come from GJK (vertex-vertex, vertex-edge and parallel
 edges), giving a single point, or two points for parallel edges overlapping along a segment.
-For an interpenetrating pair the smallest gap is the penetration depth (minus the minimum
-translational distance, the best separating-axis value ``σ <= 0``). When the hysteresis keeps a
+For an interpenetrating pair the smallest gap is minus the penetration depth (the minimum
+translational distance): the best separating-axis value ``σ <= 0``. When the hysteresis keeps a
 face or edge axis that is not the best one, no point's gap is set below ``σ``: along such an axis
 the bodies overlap by up to ``eps_f`` more (a vertex below the face's plane but beside the face),
 and those phantom overlaps, up to 1e-3 d, had been what the position correction of the
