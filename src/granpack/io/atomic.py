@@ -3,29 +3,48 @@
 Owned here: outputs are written to a temporary name in the destination folder (``.NAME.XXXX.tmp.SUFFIX``)
 and renamed over the destination only once complete; on any error the temporary file is removed
 and the destination is left as it was.
+
+The temporary file is created with mode ``0666`` filtered by the process umask (and the folder's
+default ACL), as ``open()`` would create the destination itself: with the usual umask 022 the
+outputs are readable by the group and by others (``tempfile.mkstemp`` would make them 0600).
 """
 
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = ["atomic_path", "write_text_atomic"]
 
+_ATTEMPTS = 100
+
+
+def _create_temporary(path: Path) -> Path:
+    """Create an empty, new temporary file beside ``path`` (mode 0666 & ~umask); return its path."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0)
+    for _ in range(_ATTEMPTS):
+        tmp = path.parent / f".{path.stem}.{secrets.token_hex(4)}.tmp{path.suffix}"
+        try:
+            fd = os.open(tmp, flags, 0o666)
+        except FileExistsError:
+            continue
+        os.close(fd)
+        return tmp
+    raise FileExistsError(f"{path.parent}: no free temporary name for {path.name}")
+
 
 @contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix); rename it to ``path`` on success.
 
-    The folder of ``path`` must exist.
+    The folder of ``path`` must exist. The temporary file exists, empty, with the mode of a new
+    file (0666 less the umask); writers that open it for writing keep that mode.
     """
     path = Path(path)
-    fd, name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
-    os.close(fd)
-    tmp = Path(name)
+    tmp = _create_temporary(path)
     try:
         yield tmp
         os.replace(tmp, path)
