@@ -6,45 +6,34 @@ A manifold is one unit normal ``n`` (from the antagonist ``j`` towards the candi
 frame centred on the antagonist's image ``x_j + shift`` (called body A) with the candidate ``i``
 (body B) at offset ``x_i - x_j - shift``; the normal points from A to B.
 
-Pair kinds (PHYSICS.md §3.2-3.3):
+Pair kinds (docs/method/contact-detection.md):
 
 - sphere-sphere, sphere-wall: closed forms.
 - polyhedron-wall (plane z = 0): every vertex with ``z < alert`` is a point, gap ``z``.
 - sphere-polyhedron: exact closest point of the polyhedron to the centre (GJK with a one-point
   set); centre inside: face of least depth.
-- polyhedron-polyhedron: separating-axis test over the distinct face normals of both bodies and
-  the cross products of their distinct edge directions (``ShapeTable.face_axes``,
-  ``edge_directions``), early exit as soon as one axis separates by more than the alert
-  distance; for two centrally symmetric bodies (every pinacoid) each axis reads only one vertex of
-  each antipodal pair, and a body's own face axes a constant support. The manifold is then
-  built from the best axis: for a face axis the incident face of the other body is clipped
-  against the reference face's side planes (Sutherland-Hodgman), every vertex of the clipped
-  polygon being a point (up to eight for two pinacoid faces); for an edge axis it is the
-  closest-point pair of the two supporting edges. Face axes are preferred unless an edge axis is
-  better by more than ``eps_f`` (hysteresis, Box2D/Bullet practice).
+- polyhedron-polyhedron: separating-axis test (:func:`_sat`) over the face normals of both bodies
+  and the cross products of their edge directions, stopping at the first axis that separates by
+  more than the alert distance. The manifold comes from the best axis: for a face axis, the
+  incident face of the other body clipped against the reference face's side planes
+  (Sutherland-Hodgman), **every vertex of the clipped polygon a point** (up to eight for two
+  pinacoid faces); for an edge axis, the closest points of the two supporting edges. Face axes
+  are preferred unless an edge axis is better by more than ``eps_f`` (hysteresis).
 
-Exact gaps: for a separated pair the separating-axis value is only a lower bound of the distance
-(exact when the closest features are vertex-face or crossed edges). The manifold is accepted
-only when its smallest gap equals its axis separation (then both equal the distance);
-otherwise the distance and closest points come from GJK (vertex-vertex, vertex-edge and parallel
-edges), giving a single point, or two points for parallel edges overlapping along a segment.
-For an interpenetrating pair the smallest gap is minus the penetration depth (the minimum
-translational distance): the best separating-axis value ``σ <= 0``. When the hysteresis keeps a
-face or edge axis that is not the best one, no point's gap is set below ``σ``: along such an axis
-the bodies overlap by up to ``eps_f`` more (a vertex below the face's plane but beside the face),
-and those phantom overlaps, up to 1e-3 d, had been what the position correction of the
-integrator mostly chased (measured on a collapsing pile: 99 % of the overlap growth between the
-predicted and the detected configuration).
+Gaps are exact. A separated pair's manifold is accepted when its smallest gap equals the axis
+separation (then both are the distance); otherwise (vertex-vertex, vertex-edge, parallel edges)
+the distance and closest points come from GJK. For an interpenetrating pair the smallest gap is
+minus the penetration depth, the best separating-axis value ``σ <= 0``, and no point's gap is set
+below ``σ`` even when the hysteresis keeps another axis: along such an axis the bodies seem to
+overlap by up to ``eps_f`` more, and the position correction would chase those phantom overlaps.
 
-Temporal coherence: a pair keeps the code of the axis that last separated it (tried first, see
-:func:`_sat`), and a touching pair's previous normal orders the manifold candidates (a previous
-edge-edge normal that is also nearly a face axis selects the face: the faces have met).
+Why every vertex: keeping four points of a clipped polygon (a common reduction) leaves the
+others unconstrained, and a grain rocking about the kept ones slowly sinks them into its
+neighbour, even in a pile at rest (measurements: docs/design-notes.md).
 
-No point reduction: keeping four of the clipped polygon's vertices (the deepest and the three
-spanning the largest area, PHYSICS.md §3.3, optional there) left the others unconstrained, and a
-grain rocking about the kept ones sank them into its neighbour by about 1e-7 d per step even in a
-pile at rest (the demo pile at t = 60, 1000 further steps: 42 pairs 1e-5 to 1.2e-4 d deeper; with
-every vertex kept, none deeper by more than 1e-5 d).
+Temporal coherence: a pair keeps the code of the axis that last separated it (tried first), and
+a touching pair's previous normal orders the manifold candidates (a previous edge-edge normal
+that is also nearly a face axis selects the face: the faces have met).
 
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
@@ -77,8 +66,8 @@ def world_geometry(position, quaternion, kind, vertex_start, vertices, face_star
         position: ``(N, 3)`` centres, d (only its length is used).
         quaternion: ``(N, 4)`` unit quaternions ``(w, x, y, z)``.
         kind: ``(N,)`` kind index into the shape table.
-        vertex_start, vertices, face_start, face_normals, axis_start, face_axes, direction_start,
-            edge_directions: the :class:`~granpack.shapes.ShapeTable` arrays of the same names.
+        vertex_start, vertices, face_start, face_normals, axis_start, face_axes, direction_start, edge_directions: the
+            :class:`~granpack.shapes.ShapeTable` arrays of the same names.
 
     Returns:
         ``(pv, pf, pa, pd, rv, fn, ax, dr)``: per-particle CSR offsets ``(N+1,)`` into the world
