@@ -1,4 +1,4 @@
-"""Validation of the protocol on frictionless spheres (PHYSICS.md §6), too slow for CI.
+"""Validation of the protocol on frictionless spheres (docs/method/analysis.md#reference-values-spheres), too slow for CI.
 
 Runs ``granpack.simulation.run_packing`` then the analysis on
 

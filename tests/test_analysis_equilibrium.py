@@ -1,4 +1,4 @@
-"""Equilibrium criteria (PHYSICS.md §5b) on columns with known forces."""
+"""Equilibrium criteria (docs/method/equilibrium.md) on columns with known forces."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Exponential fit N(Q) (PHYSICS.md §5g) on synthetic data with known parameters."""
+"""Exponential fit N(Q) (docs/method/analysis.md#n-versus-q00-fit) on synthetic data with known parameters."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Homogeneity profiles (PHYSICS.md §5h): a segregated and a mixed two-population lattice."""
+"""Homogeneity profiles (docs/method/analysis.md#homogeneity): a segregated and a mixed two-population lattice."""
 
 from __future__ import annotations
 

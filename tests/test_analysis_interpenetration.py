@@ -1,4 +1,4 @@
-"""Interpenetration statistics and the expansion coefficient k (PHYSICS.md §5c)."""
+"""Interpenetration statistics and the expansion coefficient k (docs/method/analysis.md#interpenetration-and-the-expansion-coefficient-k)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Orientational order Q^2_00 / Q^2_22 (PHYSICS.md §5e): perfect, uniaxial, isotropic."""
+"""Orientational order Q^2_00 / Q^2_22 (docs/method/analysis.md#orientational-order): perfect, uniaxial, isotropic."""
 
 from __future__ import annotations
 
@@ -51,7 +51,7 @@ def test_uniaxial_order_with_random_spin(rng, axis):
 
 def test_isotropic_orientations_match_the_finite_size_baseline(rng):
     order = Order(bulk=False).compute(oriented_pinacoids(random_quaternions(N, rng), rng))
-    # PHYSICS §5e.3, N = 1000: Q00 = 0.031 +- 0.008, Q22 = 0.012 +- 0.007 (4 sigma bands)
+    # isotropic baseline (docs/method/analysis.md#orientational-order), N = 1000: Q00 = 0.031 +- 0.008, Q22 = 0.012 +- 0.007 (4 sigma bands)
     assert 0.0 < order.Q00 < 0.031 + 4 * 0.008
     assert 0.0 <= order.Q22 < 0.012 + 4 * 0.007
     base = order.baseline

@@ -1,4 +1,4 @@
-"""Pair correlation g(r) in a bi-periodic slab (PHYSICS.md §5d): FCC shells, ideal gas, freud."""
+"""Pair correlation g(r) in a bi-periodic slab (docs/method/analysis.md#pair-correlation): FCC shells, ideal gas, freud."""
 
 from __future__ import annotations
 

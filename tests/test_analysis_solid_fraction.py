@@ -1,4 +1,4 @@
-"""Solid fraction (PHYSICS.md §5a): exact slice volumes, profile and bulk value on crystals."""
+"""Solid fraction (docs/method/analysis.md#solid-fraction): exact slice volumes, profile and bulk value on crystals."""
 
 from __future__ import annotations
 

@@ -109,7 +109,7 @@ def test_message_names_file_and_field_path():
         (pinacoids(seed=-1), "seed", ">= 0"),
         (with_population(0, size="1"), "populations[0].size", "number"),
         (with_population(0, size=float("nan")), "populations[0].size", "finite"),
-        (pinacoids(lateral_size=2.0), "lateral_size", "PHYSICS.md §2.10"),
+        (pinacoids(lateral_size=2.0), "lateral_size", "at most one periodic image"),
         (pinacoids(solver={"time_step": 0}), "solver.time_step", "> 0"),
         (pinacoids(solver={"friction": -0.1}), "solver.friction", ">= 0"),
         (pinacoids(solver={"restitution": 1.5}), "solver.restitution", "<= 1"),

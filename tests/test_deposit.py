@@ -15,7 +15,7 @@ CONTACT = 1e-7  # gap counted as a contact in the stability check
 def bidisperse_radii(n, small_volume_share, rng, ratio=3.0):
     """Radii (large d = 1, small 1/ratio) in random order with the given share of small by volume.
 
-    PHYSICS §4.1: N_s / N_l = f_s / (1 - f_s) * ratio^3.
+    docs/method/grains.md#mixtures-volume-shares-to-counts: N_s / N_l = f_s / (1 - f_s) * ratio^3.
     """
     per_large = small_volume_share / (1.0 - small_volume_share) * ratio**3
     n_large = int(round(n / (1.0 + per_large)))

@@ -63,7 +63,7 @@ def test_every_positive_population_gets_a_grain():
 
 
 def test_bidisperse_ratio_three_matches_physics_4_1():
-    # N_s / N_l = 27 f_s / (1 - f_s) (PHYSICS.md §4.1) rounded to integers summing to N
+    # N_s / N_l = 27 f_s / (1 - f_s) (docs/method/grains.md#mixtures-volume-shares-to-counts) rounded to integers summing to N
     f_small, n = 0.3, 3000
     counts = volume_share_counts([1 - f_small, f_small], [1.0, 1.0 / 27.0], n)
     ideal_large = n / (1 + 27 * f_small / (1 - f_small))

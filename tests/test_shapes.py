@@ -20,7 +20,7 @@ SIZES = [1.0, 1.0 / 3.0, 2.5]
 
 
 def closed_form(L, G, E, alpha=math.radians(60)):
-    """PHYSICS.md §1.3: exact V and principal moments (unit density) of a pinacoid."""
+    """docs/method/grains.md#the-pinacoid: exact V and principal moments (unit density) of a pinacoid."""
     l = L - E / math.tan(alpha)
     V = E * G * (2 * L + l) / 6
     sxx = E * G * (4 * L**3 + 3 * L**2 * l + 2 * L * l**2 + l**3) / 240

@@ -160,7 +160,7 @@ def test_snapshots_make_a_trajectory(tmp_path):
 
 def test_pinacoids_pour_without_deep_overlaps(tmp_path):
     """A short pour of 30 pinacoids: grains fall into contact with overlaps kept below 2e-3 d while
-    they are still moving fast (PHYSICS.md §2.5: the velocity-level law lets them creep; the
+    they are still moving fast (docs/method/nscd.md#contact-law: the velocity-level law lets them creep; the
     position correction removes them as the pile slows down)."""
     config = load_config_dict({
         "seed": 5, "n_particles": 30, "lateral_size": 3.0,

@@ -1,6 +1,7 @@
-"""Run configuration: the TOML schema of DESIGN.md as validated pydantic models.
+"""Run configuration: the TOML schema of a run as validated pydantic models.
 
-Units: lengths in d (the largest grain's circumscribed diameter), times in sqrt(d/g).
+Units: lengths in d (the largest grain's circumscribed diameter), times in sqrt(d/g). The docs'
+Reference > Run config page is generated from these models (docs/hooks/reference.py).
 
 Every model forbids unknown keys and is strict about types (``n_particles = 3.0`` or
 ``size = "1"`` are errors; an integer is accepted where a number is expected). Every error is
@@ -41,7 +42,7 @@ __all__ = [
     "load_config_dict",
 ]
 
-#: automatic alert distance, as a fraction of the largest grain size (PHYSICS.md §2.11: 0.02-0.05)
+#: automatic alert distance, as a fraction of the largest grain size (docs/method/nscd.md#alert-distance-and-substeps)
 AUTO_ALERT_FRACTION = 0.02
 #: the volume shares of the populations must sum to 1 within this tolerance
 SHARE_TOLERANCE = 1e-6
@@ -152,12 +153,15 @@ class PopulationConfig(_Model):
 
 
 class SolverConfig(_Model):
-    """Time stepping (Moreau-Jean theta scheme) and the NLGS contact solver (PHYSICS.md §2)."""
+    """Time stepping (Moreau-Jean theta scheme) and the NLGS contact solver.
+
+    Method: docs/method/nscd.md and docs/method/position-correction.md.
+    """
 
     time_step: _Number = Field(default=5e-3, gt=0, description="Time step h, sqrt(d/g).")
     friction: _Number = Field(default=0.0, ge=0, description="Coulomb friction coefficient mu (0: frictionless).")
     restitution: _Number = Field(default=0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
-    tolerance: _Number = Field(default=1e-4, gt=0, description="NLGS convergence tolerance (LMGC90 'Quad' norm, §2.7).")
+    tolerance: _Number = Field(default=1e-4, gt=0, description="NLGS convergence tolerance (LMGC90's 'Quad' norm).")
     settling_tolerance: _Number = Field(
         default=1e-3,
         gt=0,
@@ -189,7 +193,10 @@ class SolverConfig(_Model):
 
 
 class EquilibriumConfig(_Model):
-    """When a packing counts as at rest (PHYSICS.md §5b) and how long to wait for it."""
+    """When a packing counts as at rest and how long to wait for it.
+
+    Criteria and the stress scale P: docs/method/equilibrium.md.
+    """
 
     max_time: _Number = Field(
         default=200.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g)."
@@ -207,12 +214,15 @@ class EquilibriumConfig(_Model):
 
 
 class DepositConfig(_Model):
-    """Geometric pluviation of the grains' circumscribed spheres (PHYSICS.md §4)."""
+    """Geometric pluviation of the grains' circumscribed spheres.
+
+    Method: docs/method/pluviation.md.
+    """
 
     method: Literal["drop", "lmgc"] = Field(
         default="drop",
-        description='"drop": random drop and roll (§4.2); "lmgc": lowest three-support position, as '
-        "LMGC90's depositInBox3D (§4.3).",
+        description='"drop": random drop and roll; "lmgc": lowest three-support position, as '
+        "LMGC90's depositInBox3D.",
     )
     lateral: Literal["walls", "periodic"] = Field(
         default="walls", description='Lateral boundaries during the deposit: "walls" or "periodic".'
@@ -275,7 +285,7 @@ class RunConfig(_Model):
         if not lateral_size > minimum:
             raise ValueError(
                 f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
-                f"pair interacts through at most one periodic image (PHYSICS.md §2.10) (got {lateral_size:g})"
+                f"pair interacts through at most one periodic image (got {lateral_size:g})"
             )
         return lateral_size
 

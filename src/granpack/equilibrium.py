@@ -1,4 +1,4 @@
-"""Mechanical equilibrium of a packing under gravity (PHYSICS.md §5b).
+"""Mechanical equilibrium of a packing under gravity (docs/method/equilibrium.md).
 
 Used by the simulation loop as its stopping test (every few tens of steps) and by the analysis.
 Everything is vectorised NumPy over contact points (``np.bincount``), so a check costs a few
@@ -16,7 +16,7 @@ body ``i``; body ``j`` receives ``-f``). For particle ``p``, with gravity ``(0, 
 Lever arms ``x_alpha - x_p`` are reduced to the minimum image in x, y, so they are right whether
 or not positions were wrapped after detection.
 
-**Stress scale P** (the choice behind PHYSICS.md open question Q3). The particle Love–Weber moment
+**Stress scale P** (granpack's choice: under gravity the pressure grows with depth). The particle Love–Weber moment
 :math:`s_p = \\sum_{\\alpha \\ni p} (x_\\alpha - x_p) \\otimes f_\\alpha` is averaged over the
 horizontal slab of thickness ``t = d_max`` centred on the particle (a sliding window over centre
 heights; compression positive):
@@ -351,7 +351,7 @@ def check_equilibrium(
     gravity: float = 1.0,
     criteria: EquilibriumCriteria | None = None,
 ) -> EquilibriumReport:
-    """The equilibrium test of PHYSICS.md §5b.
+    """The equilibrium test (module docstring; docs/method/equilibrium.md).
 
     Args:
         state: particles (velocities and body-frame ``omega`` of the last step).

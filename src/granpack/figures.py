@@ -18,7 +18,7 @@ For a **campaign folder** (``runs.csv`` and the run folders), :func:`campaign_fi
   start from the monodisperse isometric pinacoids (family ``pinacoids``, share 0);
 - ``coordination``: N, Ns, Nd, Nt against the share, one panel per family;
 - ``coordination_vs_order``: N against Q00 for every non-spherical run, with the fit
-  ``N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc))`` of :mod:`granpack.analysis.fit` (PHYSICS.md §5g);
+  ``N(Q) = N0 + (N1 - N0)(1 - exp(-Q/Qc))`` of :mod:`granpack.analysis.fit` (docs/method/analysis.md#n-versus-q00-fit);
 - ``pair_correlation`` and ``homogeneity``: g(r) and the volume proportion profiles of the
   chosen mixtures (default: all), one panel per family.
 

@@ -1,6 +1,6 @@
 """Mixtures: grain populations given by volume share -> particle counts for N grains.
 
-The config gives each population's share ``f_i`` of the solid volume (PHYSICS.md §4.1). With
+The config gives each population's share ``f_i`` of the solid volume (docs/method/grains.md#mixtures-volume-shares-to-counts). With
 particle volumes ``v_i`` (d^3) and counts ``n_i`` summing to N, the achieved share is
 
 .. math:: s_i = \\frac{n_i v_i}{\\sum_j n_j v_j},
@@ -169,7 +169,7 @@ class Mixture:
         ]
 
     def particle_populations(self, rng: np.random.Generator) -> np.ndarray:
-        """``(N,)`` int64 population index of each particle, in a random order (PHYSICS.md §4.1).
+        """``(N,)`` int64 population index of each particle, in a random order.
 
         Args:
             rng: the random generator that shuffles the list.

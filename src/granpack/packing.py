@@ -3,8 +3,8 @@
 A :class:`Packing` bundles the final :class:`~granpack.state.ParticleState`, the last
 :class:`~granpack.contact.ContactSet` with its converged point impulses, the time step that turns
 impulses into forces (``force = impulse / time_step``) and the run metadata. Helpers compute the
-per-manifold resultants used by stresses, torques and contact counting (PHYSICS.md §2.9: analyses
-use the pair resultant, never the split between the points of a manifold).
+per-manifold resultants used by stresses, torques and contact counting (docs/method/contact-detection.md#manifolds:
+analyses use the pair resultant, never the split between the points of a manifold).
 """
 
 from __future__ import annotations

@@ -32,7 +32,7 @@ def _polygon_below(poly, count, h, out):
 
 @jit
 def _volume_below(verts, face_start, face_vertices, face_offsets, normals, h, poly, clipped):
-    """Volume of a convex polyhedron below the plane ``z = h`` (divergence theorem, PHYSICS §5a).
+    """Volume of a convex polyhedron below the plane ``z = h`` (divergence theorem, docs/method/analysis.md#solid-fraction).
 
     ``verts`` are centred on the centroid (so ``face_offsets`` hold for them), ``normals`` are the
     rotated outward face normals.

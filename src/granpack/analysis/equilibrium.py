@@ -2,7 +2,7 @@
 
 Reports the worst normalised net force :math:`|F_p|/(d_p^2 P_p)`, net torque
 :math:`|T_p|/(d_p^3 P_p)`, kinetic energy :math:`E_p/(d_p^3 \\bar P)` and the wall force over the
-weight, as defined in :mod:`granpack.equilibrium` (PHYSICS.md §5b), over all grains.
+weight, as defined in :mod:`granpack.equilibrium` (docs/method/equilibrium.md), over all grains.
 """
 
 from __future__ import annotations

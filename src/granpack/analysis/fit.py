@@ -1,4 +1,4 @@
-"""Exponential fit of a coordination number against nematic order (PHYSICS.md §5g).
+"""Exponential fit of a coordination number against nematic order (docs/method/analysis.md#n-versus-q00-fit).
 
 .. math:: N(Q) = N_0 + (N_1 - N_0)\\,(1 - e^{-Q/Q_c})
 

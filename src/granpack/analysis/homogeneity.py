@@ -1,4 +1,4 @@
-"""Homogeneity: share of each population by volume in horizontal layers (PHYSICS.md §5h).
+"""Homogeneity: share of each population by volume in horizontal layers (docs/method/analysis.md#homogeneity).
 
 Layers ``[k t, (k+1) t)`` of thickness ``t = d`` (largest grain size) from the wall up. With the
 exact volume of every grain inside every layer (:func:`~granpack.analysis.solid_fraction.slice_volumes`):

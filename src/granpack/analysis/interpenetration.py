@@ -1,4 +1,6 @@
-"""Interpenetration of the rigid grains and the virtual-work expansion coefficient k (PHYSICS.md §5c).
+"""Interpenetration of the rigid grains and the virtual-work expansion coefficient k.
+
+Definitions: docs/method/analysis.md#interpenetration-and-the-expansion-coefficient-k.
 
 Overlaps are the contact-point gaps ``g < 0`` taken as positive depths ``δ = -g`` (in d). The
 coefficient ``k`` is the vertical strain of a virtual affine expansion ``u_z = k (z - z_ref)`` that

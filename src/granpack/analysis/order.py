@@ -1,4 +1,6 @@
-"""Orientational order: nematic :math:`Q^2_{00}` and biaxial :math:`Q^2_{22}` (PHYSICS.md §5e).
+"""Orientational order: nematic :math:`Q^2_{00}` and biaxial :math:`Q^2_{22}`.
+
+Definitions and conventions: docs/method/analysis.md#orientational-order.
 
 For the analysed grains with body axes ``u = R e_x`` (long), ``v = R e_y``, ``w = R e_z`` (thickness):
 

@@ -1,4 +1,4 @@
-"""Pair correlation function g(r) of grain centres in a bi-periodic slab (PHYSICS.md §5d).
+"""Pair correlation function g(r) of grain centres in a bi-periodic slab (docs/method/analysis.md#pair-correlation).
 
 Reference grains and neighbours are the grains with centre in the bulk slab ``[z_b, z_t]``
 (minimum image in x, y). With ``n_k`` the number of ordered pairs (reference i, neighbour j != i)

@@ -1,4 +1,4 @@
-"""The analysis of one packing as the ``analysis.json`` document (keys are a contract, DESIGN.md).
+"""The analysis of one packing as the ``analysis.json`` document (keys are a contract: docs/reference/outputs.md#analysisjson).
 
 Top-level keys: ``solid_fraction`` {bulk, std, profile_z, profile_phi, ...}, ``coordination``
 {N, Ns, Nd, Nt, Nc, rattler_fraction, ...}, ``order`` {Q00, Q22, director, ...},

@@ -1,4 +1,6 @@
-"""Solid fraction: exact slice volumes, the profile phi(z), the free surface and the bulk value (PHYSICS.md §5a).
+"""Solid fraction: exact slice volumes, the profile phi(z), the free surface and the bulk value.
+
+Definitions: docs/method/analysis.md#solid-fraction and #bulk-region.
 
 For a slice ``[a, b)`` of the column of horizontal area ``Lx Ly``:
 

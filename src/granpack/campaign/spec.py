@@ -1,6 +1,6 @@
 """Campaign specification: a base config, a list of mixtures, and a number of replicas.
 
-A campaign TOML file (DESIGN.md, "Campaign") holds
+A campaign TOML file holds
 
 - ``replicas`` (int >= 1): runs per mixture, with seeds ``seed, seed + 1, ...`` where ``seed`` is
   the resolved config's seed (``base.seed``, or the config default when absent);

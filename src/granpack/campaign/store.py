@@ -6,8 +6,8 @@ Every run folder ``<out>/<mixture>/seed-<s>/`` holds, besides the run's own file
 - ``task.json``: the campaign task (mixture, family, share, seed, run config) it was started for;
 - ``error.txt``: the traceback of its last failure (removed when it succeeds).
 
-A run is **finished** when ``analysis.json`` is valid (a JSON object with every key of the
-DESIGN.md contract and the run's seed) and ``task.json`` records the same run config; a finished
+A run is **finished** when ``analysis.json`` is valid (a JSON object with every key of
+:data:`ANALYSIS_KEYS` and the run's seed) and ``task.json`` records the same run config; a finished
 run is never recomputed. The tables are always rebuilt from the folders, so they describe what
 is on disk:
 
@@ -55,7 +55,7 @@ SUMMARY_FILE = "summary.json"
 TASK_FILE = "task.json"
 ERROR_FILE = "error.txt"
 
-#: top-level keys every analysis.json has (DESIGN.md contract)
+#: top-level keys every analysis.json has (a contract: docs/reference/outputs.md#analysisjson)
 ANALYSIS_KEYS = (
     "solid_fraction",
     "coordination",

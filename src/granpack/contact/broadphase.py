@@ -7,7 +7,7 @@ image ``x_j + shift`` (``shift = (kx lx, ky ly, 0)``),
 .. math:: |x_i - x_j - \\mathrm{shift}| < R_i + R_j + \\mathrm{cutoff},
 
 with ``cutoff`` = alert distance + skin. Because the box satisfies
-``lx, ly > 2 (d_max + alert)`` (PHYSICS.md §2.10), a pair interacts through one image at most,
+``lx, ly > 2 (d_max + alert)`` (docs/method/index.md#the-cell), a pair interacts through one image at most,
 which is the minimum image; the shift is therefore not stored and is recomputed from the current
 positions by the narrow phase (it changes when a grain is wrapped across the boundary).
 

@@ -10,7 +10,7 @@ Conventions (owned here):
   world position (the midpoint between the two surfaces) and its own ``gap`` (> 0 open,
   < 0 interpenetration), in d.
 - ``ctype``: 1 = simple (vertex-face, edge-edge, any single point), 2 = double (edge-face),
-  3 = triple (face-face), decided by the rank of the manifold (PHYSICS.md §3.5).
+  3 = triple (face-face), decided by the rank of the manifold (docs/method/contact-detection.md#contact-types).
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ class ContactSet:
 
 @jit
 def manifold_type_nb(points, count, nx, ny, nz, eps):
-    """Numba: contact type of one manifold from the rank of its points (PHYSICS.md §3.5).
+    """Numba: contact type of one manifold from the rank of its points (see :func:`contact_types`).
 
     The points ``points[:count]`` are projected on a tangent basis ``(t, s)`` of the normal ``n``
     and centred; with :math:`\\sigma_1 \\ge \\sigma_2` the singular values of the ``2 x K``
@@ -154,7 +154,7 @@ def _types_kernel(point_start, point, normal, mask, eps):
 
 
 def contact_types(contacts: ContactSet, eps: float, mask: np.ndarray | None = None) -> np.ndarray:
-    """Contact type of every manifold from the rank of a subset of its points (PHYSICS.md §3.5).
+    """Contact type of every manifold from the rank of a subset of its points.
 
     Detection already sets ``ctype`` from all the points within the alert distance; analysis uses
     this to re-classify from the points that matter for a static packing, e.g.
@@ -162,7 +162,7 @@ def contact_types(contacts: ContactSet, eps: float, mask: np.ndarray | None = No
 
     Args:
         contacts: the manifolds.
-        eps: rank tolerance :math:`\\epsilon_f`, d (PHYSICS.md §3.4: 1e-3 d_min).
+        eps: rank tolerance :math:`\\epsilon_f`, d (detection default: 1e-3 d_min).
         mask: ``(P,)`` bool, the points to use (default: all).
 
     Returns:

@@ -13,7 +13,7 @@ API:
 Every pair with a gap (exact distance, or negative penetration depth) of at most ``alert`` gives
 one manifold: bodies ``i < j`` (``j = -1`` for the bottom wall), the image shift of ``j``, the
 normal from ``j`` to ``i``, its points with their gaps (every vertex of a contact polygon), and
-the contact type 1/2/3 from the rank of the points (PHYSICS.md §3.5). Manifolds are ordered by ``i``, then ``j`` with the
+the contact type 1/2/3 from the rank of the points (docs/method/contact-detection.md#contact-types). Manifolds are ordered by ``i``, then ``j`` with the
 wall first, independently of the Verlet state, so results do not depend on the skin.
 
 ``previous`` (the manifolds of the previous step, e.g. the solver's last ``ContactSet``) gives
@@ -22,8 +22,8 @@ face of ``i``, edge-edge) whose axis is closest to its previous normal while tha
 ``eps_f`` of the best separation, so contact points and types do not flip between equivalent
 axes from one step to the next.
 
-Conventions: lengths in d; ``alert`` is the largest gap reported (PHYSICS.md §2.11: at least
-twice the largest displacement per step); the box must satisfy ``lx, ly > 2 (d_max + alert)``.
+Conventions: lengths in d; ``alert`` is the largest gap reported (at least twice the largest
+displacement per step, docs/method/nscd.md#alert-distance-and-substeps); the box must satisfy ``lx, ly > 2 (d_max + alert)``.
 """
 
 from __future__ import annotations
@@ -113,7 +113,7 @@ class Detector:
         skin: Verlet skin, d; 0 (default) searches the grid at every call. A skin pays when
             grains move little per step (settling, static packings); see benchmarks/README.md.
         eps_f: feature band, rank tolerance and axis hysteresis, d; default ``1e-3 d_min``
-            (PHYSICS.md §3.4) with ``d_min`` the smallest grain size of the shape table.
+            with ``d_min`` the smallest grain size of the shape table.
 
     Attributes:
         n_candidates: candidate pairs in the list at the last call.

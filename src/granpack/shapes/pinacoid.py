@@ -1,6 +1,6 @@
 """The pinacoid: the eight-face "double hip roof" grain of crushed-aggregate models.
 
-Body frame (PHYSICS.md §1.2): x along the length L, y along the width G, z along the thickness E.
+Body frame (docs/method/grains.md#the-pinacoid): x along the length L, y along the width G, z along the thickness E.
 The mid-plane z = 0 holds an L x G rectangle; each half is a hip roof whose ridge (length l,
 parallel to x) sits at z = +-E/2. The triangular end faces make the angle alpha with the
 mid-plane, which fixes
