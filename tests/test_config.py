@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import re
 import tomllib
 from pathlib import Path
 
@@ -256,16 +255,12 @@ def test_examples_load(path):
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
-def test_examples_readme_lists_every_example_and_key():
+def test_examples_readme_lists_every_example():
+    # every config key is documented by the generated reference (tests/test_docs.py)
     readme = (EXAMPLES / "README.md").read_text()
     assert len(EXAMPLE_FILES) >= 8
     for path in EXAMPLE_FILES:
         assert f"`{path.name}`" in readme
-    documented = set(re.findall(r"^\| [^|]+ \| `(\w+)` \|", readme, flags=re.MULTILINE))
-    for model in MODELS:
-        for key in model.model_fields:
-            if key not in {"populations", "solver", "equilibrium", "deposit", "output"}:
-                assert key in documented, key
 
 
 def test_example_lateral_sizes_and_families():
