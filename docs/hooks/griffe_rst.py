@@ -24,7 +24,7 @@ except ImportError:  # pragma: no cover
 
 _ROLE = re.compile(r":(?:py:)?(func|class|mod|meth|attr|data|exc|obj):`(~?)([^`]+)`")
 _MATH_ROLE = re.compile(r":math:`([^`]+)`")
-_LITERAL = re.compile(r"``(.+?)``")
+_LITERAL = re.compile(r"``(.+?)``", re.S)
 
 
 def _indent(line: str) -> int:
@@ -41,6 +41,9 @@ def _blocks(text: str) -> str:
         stripped = line.strip()
         lead = " " * _indent(line)
         if stripped.startswith(".. math::"):
+            # reStructuredText nests by 2 spaces, Markdown by 4: a block indented by 2 under a
+            # list item would end up inside a paragraph, so round the indent down to a multiple of 4
+            math_lead = " " * (4 * (len(lead) // 4))
             first = stripped[len(".. math::"):].strip()
             body = [first] if first else []
             i += 1
@@ -59,7 +62,7 @@ def _blocks(text: str) -> str:
                 out.append("")
             for group in groups:
                 if group:
-                    out += [lead + "$$", *(lead + g for g in group), lead + "$$", ""]
+                    out += [math_lead + "$$", *(math_lead + g for g in group), math_lead + "$$", ""]
             continue
         if stripped.endswith("::") and not stripped.startswith(".."):
             # a literal block follows (after a blank line, indented further)
