@@ -24,7 +24,7 @@ except ImportError:  # pragma: no cover
 
 _ROLE = re.compile(r":(?:py:)?(func|class|mod|meth|attr|data|exc|obj):`(~?)([^`]+)`")
 _MATH_ROLE = re.compile(r":math:`([^`]+)`")
-_LITERAL = re.compile(r"``(.+?)``", re.S)
+_LITERAL = re.compile(r"(?<!`)``(?!`)(.+?)(?<!`)``(?!`)", re.S)  # not the ``` of code fences
 
 
 def _indent(line: str) -> int:
