@@ -63,7 +63,7 @@ def test_volume_shares_use_exact_clipped_volumes():
 
 
 def test_single_grain_has_no_bulk_layers():
-    with pytest.warns(AnalysisWarning, match="no layer"):
+    with pytest.warns(AnalysisWarning, match="no bulk region"):  # the true cause: one grain has no bulk
         hom = Homogeneity().compute(single(Sphere(1.0), position=(1, 1, 0.5)))
     assert hom.proportions["grain"] == pytest.approx([1.0])
     assert math.isnan(hom.bulk_mean["grain"])

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from packing_builders import fcc_spheres, oriented_pinacoids
+from packing_builders import cubic_cubes, fcc_spheres, oriented_pinacoids
 
 from granpack.analysis import AnalysisWarning, NotComputedError, Order
 from granpack.analysis.order import isotropic_baseline
@@ -80,6 +80,13 @@ def test_order_counts_only_the_bulk_grains_of_a_population(rng):
     assert order.n_analysed == int((~outside).sum())
     assert order.Q00 == pytest.approx(1.0, abs=1e-12) and order.Q22 == pytest.approx(1.0, abs=1e-12)
     assert Order(bulk=False).compute(packing).Q00 < 0.9
+
+
+def test_no_bulk_region_is_said_so():
+    packing, _ = cubic_cubes(3, 4)  # 4 layers of cubes: too thin for a bulk region
+    with pytest.warns(AnalysisWarning, match="no bulk region: order parameters are nan"):
+        order = Order().compute(packing)
+    assert order.n_analysed == 0 and len(order.warnings) == 1
 
 
 def test_spheres_only_give_nan_and_warning():

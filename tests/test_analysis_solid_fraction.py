@@ -107,6 +107,10 @@ def test_too_thin_for_a_bulk_gives_nan_and_warning():
     with pytest.warns(AnalysisWarning, match="no bulk region"):
         sf = SolidFraction().compute(packing)
     assert not sf.has_bulk
+    # the cause, not the negative range it leads to
+    surface = f"{sf.z_surface:.3g} d"
+    assert sf.no_bulk_reason.startswith(f"no bulk region: the pile's free surface is at {surface}, below the")
+    assert sf.warnings == [sf.no_bulk_reason + ": the bulk solid fraction is nan"]
     assert math.isnan(sf.bulk) and math.isnan(sf.std)
     assert len(sf.warnings) == 1
     # the profile is still there

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
 __all__ = [
     "FAMILIES",
     "FORMATS",
+    "FigureFiles",
     "save_figure",
     "render_packing",
     "run_figures",
@@ -77,6 +78,19 @@ _PANEL_XLABEL = {
 #: the shape families' share-0 point: monodisperse isometric pinacoids
 _REFERENCE_FAMILY = "pinacoids"
 _COORDINATION = (("coordination.N", "N"), ("coordination.Ns", "Ns"), ("coordination.Nd", "Nd"), ("coordination.Nt", "Nt"))
+
+
+class FigureFiles(list):
+    """The files written (a list of paths), with :attr:`skipped`: figure name -> why it was not
+    drawn (no data for it), so that no empty figure file is ever written."""
+
+    def __init__(self, paths: Iterable[Path] = (), skipped: dict[str, str] | None = None):
+        super().__init__(paths)
+        self.skipped: dict[str, str] = dict(skipped or {})
+
+
+def _finite(values: np.ndarray) -> bool:
+    return bool(len(values)) and bool(np.isfinite(values).any())
 
 
 def save_figure(fig: Figure, out_dir: Path, stem: str, formats: Sequence[str] = FORMATS) -> list[Path]:
@@ -221,13 +235,13 @@ def _homogeneity(analysis: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dic
         return z, {}, {}
     profiles = {str(name): _array(p) for name, p in proportions.items()}
     nominal = {str(k): float(v) for k, v in nominal.items() if isinstance(v, (int, float))} if isinstance(nominal, dict) else {}
-    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and len(z)}, nominal
+    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and _finite(p)}, nominal
 
 
 def _plot_profile(ax: Axes, analysis: dict) -> bool:
     sf = analysis.get("solid_fraction") or {}
     z, phi = _array(sf.get("profile_z")), _array(sf.get("profile_phi"))
-    if not len(z) or len(z) != len(phi):
+    if not _finite(phi) or len(z) != len(phi):
         return False
     ax.plot(phi, z, color="C0", label="slice average")
     bulk_region = analysis.get("bulk") or {}
@@ -249,14 +263,23 @@ def _plot_gr(ax: Axes, r: np.ndarray, g: np.ndarray, **style) -> None:
     ax.set_ylabel("pair correlation g(r)")
 
 
-def run_figures(run_dir: str | Path) -> list[Path]:
+def _no_bulk(analysis: dict) -> str:
+    """`` (no bulk region)`` when the analysis had none, else nothing."""
+    bulk = analysis.get("bulk") or {}
+    return " (no bulk region: the pile is too low, see analysis.json 'warnings')" if bulk.get("valid") is False else ""
+
+
+def run_figures(run_dir: str | Path) -> FigureFiles:
     """The figures of one run folder, written into ``<run_dir>/figures/``.
+
+    A figure without data (an empty g(r), no homogeneity profile) is not written; the result
+    says which and why.
 
     Args:
         run_dir: a run folder with ``analysis.json`` (and ``final.gsd`` for the 3D picture).
 
     Returns:
-        The files written.
+        The files written, and in ``.skipped`` the figures left out with the reason.
 
     Raises:
         InputError: no readable ``analysis.json``, or an unreadable ``final.gsd``.
@@ -266,14 +289,18 @@ def run_figures(run_dir: str | Path) -> list[Path]:
     run_dir = Path(run_dir)
     analysis = _read_analysis(run_dir)
     out = run_dir / "figures"
-    written: list[Path] = []
+    written = FigureFiles()
 
     fig = Figure(figsize=(4.5, 6))
     if _plot_profile(fig.add_subplot(), analysis):
         written += save_figure(fig, out, "solid_fraction_profile")
+    else:
+        written.skipped["solid_fraction_profile"] = "analysis.json has no solid-fraction profile"
 
     r, g = _pair_correlation(analysis)
-    if len(r):
+    if not _finite(g):
+        written.skipped["pair_correlation"] = "g(r) is empty" + (_no_bulk(analysis) or " (fewer than two grains in the analysed slab)")
+    else:
         fig = Figure(figsize=(6, 4))
         ax = fig.add_subplot()
         _plot_gr(ax, r, g, color="C0", label="all grains")
@@ -282,7 +309,9 @@ def run_figures(run_dir: str | Path) -> list[Path]:
         written += save_figure(fig, out, "pair_correlation")
 
     z, profiles, nominal = _homogeneity(analysis)
-    if profiles:
+    if not any(_finite(p) for p in profiles.values()):
+        written.skipped["homogeneity"] = "no volume proportion profile in analysis.json"
+    else:
         fig = Figure(figsize=(4.5, 6))
         ax = fig.add_subplot()
         for k, (name, p) in enumerate(profiles.items()):
@@ -298,6 +327,8 @@ def run_figures(run_dir: str | Path) -> list[Path]:
     final = run_dir / "final.gsd"
     if final.is_file():
         written += save_figure(render_packing(read_packing(final)), out, "packing")
+    else:
+        written.skipped["packing"] = f"no {final.name} in {run_dir}"
     return written
 
 
@@ -447,10 +478,10 @@ def _chosen(runs: pd.DataFrame, mixtures: Iterable[str] | None) -> pd.DataFrame:
 
 
 def _pair_correlation(analysis: dict) -> tuple[np.ndarray, np.ndarray]:
-    """``(r, g)`` from an analysis (empty arrays when absent or inconsistent)."""
+    """``(r, g)`` from an analysis (empty arrays when absent, inconsistent or all nan)."""
     pc = analysis.get("pair_correlation") or {}
     r, g = _array(pc.get("r")), _array(pc.get("g"))
-    return (r, g) if len(r) and len(r) == len(g) else (np.zeros(0), np.zeros(0))
+    return (r, g) if len(r) == len(g) and _finite(g) else (np.zeros(0), np.zeros(0))
 
 
 def _share_colour(share: float):
@@ -516,7 +547,30 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
     return fig
 
 
-def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = None) -> list[Path]:
+def _campaign_skip_reason(stem: str, runs: pd.DataFrame, chosen: pd.DataFrame) -> str:
+    """Why a campaign figure has nothing to show."""
+    if not len(runs):
+        return "no finished run in runs.csv (status 'done')"
+    columns = {
+        "solid_fraction": ["solid_fraction.bulk"], "order": ["order.Q00"],
+        "coordination": [c for c, _ in _COORDINATION], "coordination_vs_order": ["order.Q00", "coordination.N"],
+    }
+    if stem == "coordination_vs_order" and runs["shapes"].astype(str).str.contains("sphere").all():
+        return "every finished run is of spheres (no orientational order)"
+    for column in columns.get(stem, []):
+        if column not in runs or runs[column].notna().sum() == 0:
+            return (f"no finished run has a value of {column} (nan when a run has no bulk region, "
+                    "or no non-spherical grain for the order)")
+    if stem in ("pair_correlation", "homogeneity") and len(chosen) < len(runs):
+        return "none of the chosen mixtures has one (--mixture)"
+    if stem == "pair_correlation":
+        return "no finished run has a g(r) (empty when a run has no bulk region)"
+    if stem == "homogeneity":
+        return "no mixture has a second population (the figure shows the substituted grains)"
+    return "nothing to draw"
+
+
+def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = None) -> FigureFiles:
     """The campaign figures (module docstring), written into ``<campaign_dir>/figures/``.
 
     Args:
@@ -524,7 +578,7 @@ def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = 
         mixtures: mixtures drawn in the g(r) and homogeneity figures (default: all).
 
     Returns:
-        The files written.
+        The files written, and in ``.skipped`` the figures left out (nothing to draw) with the reason.
 
     Raises:
         InputError: no readable ``runs.csv``, or an unknown mixture name.
@@ -541,15 +595,19 @@ def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = 
         "pair_correlation": _pair_correlation_figure(campaign_dir, chosen),
         "homogeneity": _homogeneity_figure(campaign_dir, chosen),
     }
-    written: list[Path] = []
+    written = FigureFiles()
     for stem, fig in figures.items():
         if fig is not None:
             written += save_figure(fig, out, stem)
+        else:
+            written.skipped[stem] = _campaign_skip_reason(stem, runs, chosen)
     return written
 
 
-def make_figures(folder: str | Path, mixtures: Iterable[str] | None = None) -> list[Path]:
-    """Figures of a campaign folder (it has ``runs.csv``) or of a run folder.
+def make_figures(folder: str | Path, mixtures: Iterable[str] | None = None) -> FigureFiles:
+    """Figures of a campaign folder (it has ``runs.csv``) or of a run folder (see
+    :func:`campaign_figures`, :func:`run_figures`; ``.skipped`` of the result says what was left
+    out and why).
 
     Args:
         folder: the folder.

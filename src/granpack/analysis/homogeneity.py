@@ -81,8 +81,11 @@ class Homogeneity(Compute):
             (z_bot, z_top), valid = self.z_range, self.z_range[1] > self.z_range[0]
         edges = np.arange(nlayers + 1) * t
         self._bulk_layers = (edges[:-1] >= z_bot - 1e-12) & (edges[1:] <= z_top + 1e-12) if valid else np.zeros(nlayers, bool)
-        if not self._bulk_layers.any():
-            self._warn("no layer lies entirely in the bulk region: bulk homogeneity statistics are nan")
+        if not valid:
+            self._warn("no bulk region: bulk homogeneity statistics are nan")
+        elif not self._bulk_layers.any():
+            self._warn(f"no {t:g} d layer lies entirely in the bulk region (z = {z_bot:.3g} .. {z_top:.3g} d): "
+                       "bulk homogeneity statistics are nan")
         return self._done()
 
     @result

@@ -128,7 +128,10 @@ class Order(Compute):
         self._director = np.full(3, math.nan)
         self._axis = -1
         if self._n == 0:
-            self._warn("no non-spherical grain in the analysed region: order parameters are nan")
+            if self.bulk and not valid:
+                self._warn("no bulk region: order parameters are nan")
+            else:
+                self._warn("no non-spherical grain in the analysed region: order parameters are nan")
         else:
             self._q00, self._q22, self._director, self._axis = order_parameters(quat_to_matrix(state.quaternion[mask]))
         self._baseline = isotropic_baseline(self._n, self.baseline_samples) if self._n else (math.nan,) * 4

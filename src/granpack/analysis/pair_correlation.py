@@ -119,8 +119,13 @@ class PairCorrelation(Compute):
         if self.interior_only and self.periodic_z is None:
             refs &= (z >= z_b + r_max) & (z <= z_t - r_max)
         self._n_ref = int(refs.sum())
-        if not valid or members.sum() < 2 or self._n_ref == 0:
-            self._warn("fewer than two grains (or no reference grain) in the slab: g(r) is nan")
+        if not valid:
+            self._warn(f"the analysed slab is empty (no bulk region: z from {z_b:.3g} to {z_t:.3g} d): g(r) is nan")
+            return self._done()
+        if members.sum() < 2 or self._n_ref == 0:
+            self._warn(f"{int(members.sum())} grain(s) in the slab z = {z_b:.3g} .. {z_t:.3g} d, {self._n_ref} of them "
+                       f"at least r_max = {r_max:g} d from its faces (reference grains): g(r) needs two grains and "
+                       "one reference; it is nan")
             return self._done()
 
         idx = np.flatnonzero(members)

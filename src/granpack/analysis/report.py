@@ -81,6 +81,10 @@ def _populations(packing: Packing) -> list[dict]:
     return out
 
 
+#: analyses restricted to the bulk region
+_BULK_KEYS = ("coordination", "order", "pair_correlation", "homogeneity")
+
+
 def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) -> dict:
     """Every analysis of ``packing`` as a dict (profiles as NumPy arrays, nan for undefined figures).
 
@@ -108,9 +112,14 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             "interpenetration": Interpenetration(opt.n_bottom).compute(packing),
             "homogeneity": Homogeneity(opt.layer_thickness, z_range).compute(packing),
         }
-    messages += [f"solid_fraction: {m}" for m in sf.warnings]
+    if sf.has_bulk:
+        messages += [f"solid_fraction: {m}" for m in sf.warnings]
+    else:  # one message says why every bulk figure is nan
+        messages.append(f"{sf.no_bulk_reason}: every bulk figure (solid fraction, "
+                        f"{', '.join(_BULK_KEYS).replace('_', ' ')}) is nan")
     for key, obj in computed.items():
-        messages += [f"{key}: {m}" for m in obj.warnings]
+        if sf.has_bulk or key not in _BULK_KEYS:
+            messages += [f"{key}: {m}" for m in obj.warnings]
     for m in messages:
         warnings.warn(m, AnalysisWarning, stacklevel=2)
 
@@ -204,6 +213,13 @@ def analyze_run(run_dir: str | os.PathLike, options: AnalysisOptions | None = No
     return result
 
 
+def _bulk_region(bulk: dict, fmt) -> str:
+    """``z_bottom .. z_top``, or ``none (surface at ... d)`` when there is no bulk region."""
+    if bulk.get("valid"):
+        return f"{fmt(bulk['z_bottom'], '.2f')} .. {fmt(bulk['z_top'], '.2f')}"
+    return f"none (surface at {fmt(bulk.get('z_surface'), '.2f')} d)"
+
+
 def summary_rows(result: dict) -> list[tuple[str, str]]:
     """Headline figures of an :func:`analyze_packing` result as ``(label, formatted value)`` rows."""
 
@@ -216,7 +232,7 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
     eq, ip = result["equilibrium"], result["interpenetration"]
     rows = [
         ("grains", str(result["n_particles"])),
-        ("bulk region z/d", f"{fmt(result['bulk']['z_bottom'], '.2f')} .. {fmt(result['bulk']['z_top'], '.2f')}"),
+        ("bulk region z/d", _bulk_region(result["bulk"], fmt)),
         ("solid fraction (bulk)", f"{fmt(sf['bulk'])} ± {fmt(sf['std'])}"),
         ("N / Nc (backbone)", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
         ("Ns / Nd / Nt", f"{fmt(co['Ns'], '.3f')} / {fmt(co['Nd'], '.3f')} / {fmt(co['Nt'], '.3f')}"),

@@ -144,10 +144,7 @@ class SolidFraction(Compute):
         self._bulk = self._std = math.nan
         self._layers = np.zeros(0)
         if not valid:
-            self._warn(
-                f"no bulk region: z_top - z_bottom = {z_top - z_bot:.3g} d is thinner than one grain size "
-                f"(surface at {self._z_surface:.3g} d); bulk solid fraction is nan"
-            )
+            self._warn(self._no_bulk_reason() + ": the bulk solid fraction is nan")
             return self._done()
         height = z_top - z_bot
         self._bulk = float(slice_volumes(packing, z_bot, height, 1).sum() / (area * height))
@@ -158,6 +155,21 @@ class SolidFraction(Compute):
         else:
             self._warn("bulk region holds fewer than two grain-size layers: solid-fraction std is nan")
         return self._done()
+
+    @result
+    def no_bulk_reason(self) -> str:
+        """Why there is no bulk region, in one line (empty when there is one)."""
+        return "" if self._valid else self._no_bulk_reason()
+
+    def _no_bulk_reason(self) -> str:
+        if self.z_range is not None:
+            return f"no bulk region: the given range z = {self._z_bottom:.3g} .. {self._z_top:.3g} d is empty"
+        if not math.isfinite(self._z_surface):
+            return "no bulk region: no grain, hence no free surface"
+        d, needed = self._d, (self.n_bottom + 1.0 + self.n_top) * self._d
+        return (f"no bulk region: the pile's free surface is at {self._z_surface:.3g} d, below the {needed:.3g} d a "
+                f"bulk region needs ({self.n_bottom:g} d above the wall, at least {d:.3g} d thick, {self.n_top:g} d "
+                "below the surface)")
 
     @result
     def profile_z(self) -> np.ndarray:
