@@ -270,3 +270,38 @@ def oriented_pinacoids(quaternions, rng, lateral: float = 8.0, height: float = 8
         quaternion=quaternions,
     )
     return Packing(state, ContactSet.empty(), H, [family], {})
+
+
+def cube_on_cube(axis=(1.0, 0.0, 0.0), tilt: float = 0.0, gap: float = 0.0, alert: float = 0.02,
+                 loaded_within: float = 1e-9) -> Packing:
+    """Two cubes (circumscribed diameter 1), the upper one face down on the lower one's top face.
+
+    The upper cube is turned by ``tilt`` (rad) about the horizontal ``axis`` through its centre,
+    then lowered until its lowest point is ``gap`` above the top face: about an edge direction
+    (e.g. x) it rests on an edge, about a face-diagonal normal (e.g. (1, -1, 0)) on a vertex. Both
+    grains are far above the wall. The manifold is the real one of :func:`granpack.contact.detect`
+    (every point within ``alert``); its points with gap at most ``loaded_within`` above the
+    smallest one carry the unit normal force evenly, the others none.
+    """
+    from granpack.contact import detect
+    from granpack.rotations import quat_from_axis_angle, quat_to_matrix
+
+    cube = platonic("cube", 1.0)
+    e = 1.0 / math.sqrt(3.0)
+    q = quat_from_axis_angle(np.asarray(axis, float) / np.linalg.norm(axis), tilt)
+    lowest = (cube.vertices @ quat_to_matrix(q).T)[:, 2].min()
+    lower = np.array([1.5, 1.5, 3.0])
+    upper = lower + (0.0, 0.0, 0.5 * e + gap - lowest)
+    state = ParticleState(
+        box=Box.square(3.0),
+        shapes=ShapeTable.from_shapes([cube]),
+        kind=np.zeros(2, np.int64),
+        population=np.zeros(2, np.int64),
+        position=np.array([lower, upper]),
+        quaternion=np.array([[1.0, 0.0, 0.0, 0.0], q]),
+    )
+    contacts = detect(state, alert)
+    loaded = contacts.gap <= contacts.gap.min() + loaded_within
+    normal = contacts.normal[contacts.point_manifold]
+    contacts.impulse = H * normal * (loaded / loaded.sum())[:, None]
+    return Packing(state, contacts, H, ["cubes"], {})

@@ -1,4 +1,4 @@
-"""Coordination numbers by contact type, rattlers (PHYSICS.md §5f)."""
+"""Coordination numbers by contact type (types from the force-bearing points), rattlers."""
 
 from __future__ import annotations
 
@@ -6,10 +6,12 @@ import math
 
 import numpy as np
 import pytest
-from packing_builders import H, contact_set, cubic_cubes, fcc_spheres, sphere_column
+from packing_builders import H, contact_set, cube_on_cube, cubic_cubes, fcc_spheres, sphere_column
 
 from granpack.analysis import AnalysisWarning, Coordination, NotComputedError
+from granpack.analysis.coordination import force_bearing_points, near_points, type_rules
 from granpack.box import Box
+from granpack.contact import DOUBLE, SIMPLE, TRIPLE
 from granpack.packing import Packing
 from granpack.shapes import Pinacoid, ShapeTable
 from granpack.state import ParticleState
@@ -58,9 +60,14 @@ def _hand_built():
 
     def contact(i, j, ctype, force=1.0):
         normal = (pos[i] - pos[j]) / np.linalg.norm(pos[i] - pos[j])
-        k = ctype + (ctype == 3)  # 1, 2 or 4 points
-        return dict(i=i, j=j, normal=normal, ctype=ctype, points=np.repeat(0.5 * (pos[i] + pos[j])[None], k, axis=0),
-                    forces=np.repeat((force / k * normal)[None], k, axis=0))
+        t = np.cross(normal, (0.0, 0.0, 1.0)) if abs(normal[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        t /= np.linalg.norm(t)
+        s = np.cross(normal, t)
+        # 1 point, a segment of 2 or a square of 4, with loaded points spanning that rank
+        offsets = {1: [(0, 0)], 2: [(-1, 0), (1, 0)], 3: [(-1, -1), (1, -1), (1, 1), (-1, 1)]}[ctype]
+        points = [0.5 * (pos[i] + pos[j]) + 0.1 * (a * t + b * s) for a, b in offsets]
+        k = len(points)
+        return dict(i=i, j=j, normal=normal, ctype=ctype, points=points, forces=np.repeat((force / k * normal)[None], k, axis=0))
 
     manifolds = [contact(0, 1, 3), contact(0, 2, 3), contact(3, 0, 1), contact(4, 1, 3), contact(5, 4, 2),
                  contact(4, 2, 1), contact(4, 3, 1), contact(5, 3, 1), contact(0, 5, 3, force=0.0)]
@@ -104,3 +111,113 @@ def test_no_bulk_and_no_force_give_nan_with_warning():
     with pytest.warns(AnalysisWarning, match="no force-bearing contact"):
         co = Coordination(z_range=(2.0, 5.0)).compute(packing)
     assert math.isnan(co.N) and co.with_rattlers["N"] == 0.0 and co.rattler_fraction == 1.0
+
+
+# ---------------------------------------------------------------------------------------------
+# contact types from the force-bearing points (two cubes, manifold from detection)
+
+ALERT = 0.02
+BOTH = (0.0, 10.0)  # a bulk region holding the two cubes
+
+
+def _figures(ns, nd, nt):
+    """Figures of each of the two cubes of :func:`cube_on_cube` (one manifold, counted by both)."""
+    return {"N": float(ns + nd + nt), "Ns": float(ns), "Nd": float(nd), "Nt": float(nt), "Nc": float(ns + 2 * nd + 3 * nt)}
+
+
+def _assert_every_point_in_alert(packing):
+    """Premise of the tests: detection sees the whole face, so its (geometric) type is triple."""
+    c = packing.contacts
+    assert c.n_manifolds == 1 and c.n_points >= 3
+    assert np.all(c.gap <= ALERT) and c.ctype[0] == TRIPLE
+
+
+@pytest.mark.parametrize("tilt", [0.01, 0.03])
+def test_tilted_face_resting_on_one_edge_is_double(tilt):
+    """Face tilted about an edge direction: every corner within the alert distance, force on the
+    two corners of the edge only. The detection type (triple) would give Nt = 1, Nc = 3."""
+    packing = cube_on_cube(axis=(1.0, 0.0, 0.0), tilt=tilt)
+    _assert_every_point_in_alert(packing)
+    loaded = force_bearing_points(packing)
+    assert loaded.sum() == 2 and np.all(packing.contacts.gap[~loaded] > 1e-3)
+    co = Coordination(z_range=BOTH, remove_rattlers=False).compute(packing)
+    assert list(co.types) == [DOUBLE]
+    assert co.figures == _figures(0, 1, 0) and co.with_rattlers == co.figures
+    assert {k: co.by_rule["geometric"][k] for k in co.figures} == _figures(0, 0, 1)
+    # the open corners are 5.7e-3 d (tilt 0.01) or more away: the gap rule agrees
+    assert {k: co.by_rule["gap_rule"][k] for k in co.figures} == _figures(0, 1, 0)
+    assert co.by_rule["gap_rule"]["same_type_as_force"] == 1.0 and co.by_rule["geometric"]["same_type_as_force"] == 0.0
+
+
+def test_vertex_on_a_face_is_simple():
+    """Face tilted about a face-diagonal normal: it rests on one corner, the other three within the
+    alert distance carry no force. The detection type (triple) would give Nt = 1."""
+    packing = cube_on_cube(axis=(1.0, -1.0, 0.0), tilt=0.01)
+    _assert_every_point_in_alert(packing)
+    assert force_bearing_points(packing).sum() == 1
+    co = Coordination(z_range=BOTH, remove_rattlers=False).compute(packing)
+    assert list(co.types) == [SIMPLE]
+    assert co.figures == _figures(1, 0, 0)
+    assert {k: co.by_rule["gap_rule"][k] for k in co.figures} == _figures(1, 0, 0)
+
+
+def _load_corners(packing, forces_by_corner):
+    """Set the normal force of the flat contact's corners, keyed by (sign x, sign y) about the centre."""
+    c = packing.contacts
+    normal = c.normal[c.point_manifold]
+    for k, p in enumerate(c.point):
+        key = (int(np.sign(p[0] - 1.5)), int(np.sign(p[1] - 1.5)))
+        c.impulse[k] = H * forces_by_corner.get(key, 0.0) * normal[k]
+    return packing
+
+
+def test_flat_face_on_face_is_triple_with_three_or_more_loaded_corners():
+    packing = cube_on_cube()
+    c = packing.contacts
+    assert c.n_points == 4 and np.all(np.abs(c.gap) < 1e-12)
+    co = Coordination(z_range=BOTH, remove_rattlers=False).compute(packing)
+    assert list(co.types) == [TRIPLE] and co.figures == _figures(0, 0, 1)
+    # three non-collinear corners with unequal forces still span an area
+    _load_corners(packing, {(-1, -1): 1.0, (1, -1): 0.3, (1, 1): 0.01})
+    co = Coordination(z_range=BOTH, remove_rattlers=False).compute(packing)
+    assert force_bearing_points(packing).sum() == 3
+    assert list(co.types) == [TRIPLE] and co.figures == _figures(0, 0, 1)
+
+
+def test_flat_face_loaded_along_one_side_is_double_and_the_gap_rule_says_triple():
+    """The force, not the geometry, decides: two loaded corners of a flat face are a segment.
+    The gap rule (all four corners touch) reports the disagreement."""
+    packing = _load_corners(cube_on_cube(), {(1, -1): 1.0, (1, 1): 0.5})
+    co = Coordination(z_range=BOTH, remove_rattlers=False).compute(packing)
+    assert list(co.types) == [DOUBLE] and co.figures == _figures(0, 1, 0)
+    assert list(near_points(packing)) == [True] * 4
+    assert {k: co.by_rule["gap_rule"][k] for k in co.figures} == _figures(0, 0, 1)
+    assert co.by_rule["gap_rule"]["same_type_as_force"] == 0.0
+
+
+def test_point_threshold_is_relative_to_the_manifold():
+    """Corners loaded below ``point_tol x`` the largest point force of the contact do not count,
+    whatever the scale of the forces."""
+    for scale in (1.0, 1e-6):
+        packing = _load_corners(cube_on_cube(), {(1, -1): scale, (1, 1): scale, (-1, 1): 1e-5 * scale, (-1, -1): 1e-5 * scale})
+        assert list(type_rules(packing)["force"]) == [DOUBLE]
+        assert list(type_rules(packing, point_tol=1e-6)["force"]) == [TRIPLE]
+        assert list(type_rules(packing, point_tol=0.0)["force"]) == [TRIPLE]
+    with pytest.raises(ValueError, match="point_tol"):
+        force_bearing_points(packing, point_tol=1.0)
+
+
+def test_rattler_rule_uses_the_force_types():
+    """In the hand-built packing, grain 0 has 3 + 3 + 1 = 7 constraints; with force on one side
+    only of its square contact with grain 1 that contact is double and grain 0 (6 < 7) a rattler.
+    The detection types keep the old backbone."""
+    packing = _hand_built()
+    c = packing.contacts
+    assert (c.body_i[0], c.body_j[0]) == (0, 1) and c.point_start[1] == 4
+    c.impulse[2:4] = 0.0  # the corners (1, 1) and (-1, 1) of manifold 0-1 unloaded
+    with pytest.warns(AnalysisWarning, match="every bulk grain is a rattler"):
+        co = Coordination(z_range=(2.0, 6.0)).compute(packing)
+    assert co.types[0] == DOUBLE and co.by_rule["geometric"]["rattler_fraction"] == pytest.approx(2 / 3)
+    assert co.rattler_fraction == 1.0 and list(np.flatnonzero(co.rattlers)) == [0, 4, 5]
+    assert co.with_rattlers["Nd"] == pytest.approx(1.0) and co.with_rattlers["Nt"] == pytest.approx(2 / 3)
+    assert co.by_rule["geometric"]["N"] == 3.0 and co.by_rule["geometric"]["Nc"] == 7.0

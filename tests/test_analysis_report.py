@@ -60,6 +60,26 @@ def test_analyze_run_writes_the_contract(tmp_path):
     assert data["warnings"] == [] and result["solid_fraction"]["bulk"] == data["solid_fraction"]["bulk"]
 
 
+def test_contact_types_from_force_bearing_points_with_gap_rule_and_detection_types(tmp_path):
+    """Unloading one side of every lateral face contact of the cube stack makes those contacts
+    double under the force rule; the gap rule and the detection types still see triple contacts."""
+    packing, _ = cubic_cubes(3, 12)
+    c = packing.contacts
+    for m in np.flatnonzero(np.abs(c.normal[:, 2]) < 0.5):
+        c.impulse[c.point_start[m] + 2:c.point_start[m] + 4] = 0.0  # two adjacent corners of the square
+    write_packing(tmp_path / "final.gsd", packing)
+    analyze_run(tmp_path)
+    co = json.loads((tmp_path / "analysis.json").read_text())["coordination"]
+    assert CONTRACT["coordination"] | {"with_rattlers", "n_analysed", "force_tol"} <= set(co)
+    assert {k: co[k] for k in ("N", "Ns", "Nd", "Nt", "Nc")} == {"N": 6.0, "Ns": 0.0, "Nd": 4.0, "Nt": 2.0, "Nc": 14.0}
+    assert co["with_rattlers"]["Nc"] == 14.0 and co["rattler_fraction"] == 0.0
+    for key in ("gap_rule", "geometric"):
+        assert {k: co[key][k] for k in ("N", "Ns", "Nd", "Nt", "Nc")} == {"N": 6.0, "Ns": 0.0, "Nd": 0.0, "Nt": 6.0, "Nc": 18.0}
+        assert co[key]["rattler_fraction"] == 0.0 and co[key]["with_rattlers"]["Nt"] == 6.0
+        assert co[key]["same_type_as_force"] == pytest.approx(1 / 3)  # the vertical and wall contacts: 108 of 324
+    assert co["type_rule"] == "force-bearing points" and co["gap_tol"] == 1e-4 and co["point_tol"] == 1e-3
+
+
 def test_two_populations_in_the_json(tmp_path, rng):
     packing = random_pinacoids(300, rng, lateral=5.0, height=12.0)
     write_packing(tmp_path / "final.gsd", packing)

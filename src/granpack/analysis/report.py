@@ -1,7 +1,9 @@
 """The analysis of one packing as the ``analysis.json`` document (keys are a contract: docs/reference/outputs.md#analysisjson).
 
 Top-level keys: ``solid_fraction`` {bulk, std, profile_z, profile_phi, ...}, ``coordination``
-{N, Ns, Nd, Nt, Nc, rattler_fraction, ...}, ``order`` {Q00, Q22, director, ...},
+{N, Ns, Nd, Nt, Nc, rattler_fraction, ...; contact types from the force-bearing points, the same
+figures with the gap-rule and the detection types under ``gap_rule`` and ``geometric``}, ``order``
+{Q00, Q22, director, ...},
 ``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
 {z, proportions, ...}, ``n_particles``, ``populations``, ``seed``, ``version``; extras:
@@ -49,6 +51,10 @@ class AnalysisOptions:
         rdf_r_max: largest g(r) distance (capped at half the lateral period).
         rdf_partials: also compute the partial g_ab(r).
         force_tol: relative threshold of force-bearing contacts.
+        point_tol: relative threshold of force-bearing points within a contact; the contact type
+            is the rank of those points.
+        gap_tol: gap tolerance of the cross-check contact types, in d.
+        rank_tol: rank tolerance of the contact types, in units of the smallest grain size.
         criteria: equilibrium tolerances.
     """
 
@@ -60,6 +66,9 @@ class AnalysisOptions:
     rdf_r_max: float = 4.0
     rdf_partials: bool = False
     force_tol: float = 1e-9
+    point_tol: float = 1e-3
+    gap_tol: float = 1e-4
+    rank_tol: float = 1e-3
     criteria: EquilibriumCriteria = field(default_factory=EquilibriumCriteria)
 
 
@@ -105,7 +114,8 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         r_max = min(opt.rdf_r_max, 0.5 * min(box.lx, box.ly))
         bins = max(int(round(r_max / opt.rdf_bin_width)), 1)
         computed = {
-            "coordination": Coordination(z_range, opt.force_tol).compute(packing),
+            "coordination": Coordination(z_range, opt.force_tol, point_tol=opt.point_tol, gap_tol=opt.gap_tol,
+                                         rank_tol=opt.rank_tol).compute(packing),
             "order": Order(z_range).compute(packing),
             "pair_correlation": PairCorrelation(bins, r_max, z_range, partials=opt.rdf_partials).compute(packing),
             "equilibrium": Equilibrium(opt.criteria).compute(packing),
@@ -166,6 +176,12 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             "with_rattlers": co.with_rattlers,
             "n_analysed": co.n_analysed,
             "force_tol": opt.force_tol,
+            "type_rule": "force-bearing points",
+            "point_tol": opt.point_tol,
+            "gap_tol": opt.gap_tol,
+            "rank_tol": opt.rank_tol,
+            "gap_rule": co.by_rule["gap_rule"],
+            "geometric": co.by_rule["geometric"],
         },
         "order": {
             "Q00": order.Q00,
@@ -237,6 +253,12 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         ("N / Nc (backbone)", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
         ("Ns / Nd / Nt", f"{fmt(co['Ns'], '.3f')} / {fmt(co['Nd'], '.3f')} / {fmt(co['Nt'], '.3f')}"),
         ("rattler fraction", fmt(co["rattler_fraction"], ".3f")),
+    ]
+    for key, label in (("gap_rule", "gap rule"), ("geometric", "detection types")):
+        other = co.get(key)
+        if other is not None:
+            rows.append((f"Ns / Nd / Nt / Nc ({label})", " / ".join(fmt(other[k], ".3f") for k in ("Ns", "Nd", "Nt", "Nc"))))
+    rows += [
         ("Q00 / Q22", f"{fmt(order['Q00'])} / {fmt(order['Q22'])} (axis {order['director_axis'] or '-'})"),
         (
             "isotropic baseline Q00 / Q22",

@@ -11,6 +11,10 @@ Conventions (owned here):
   < 0 interpenetration), in d.
 - ``ctype``: 1 = simple (vertex-face, edge-edge, any single point), 2 = double (edge-face),
   3 = triple (face-face), decided by the rank of the manifold (docs/method/contact-detection.md#contact-types).
+  This is the geometric (detection) type, from every point within the alert distance; the
+  analysis of a static packing types a contact by the rank of its force-bearing points instead
+  (:mod:`granpack.analysis.coordination`), since nearly parallel faces touching along one edge
+  have every point within the alert distance but carry force on the edge only.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ class ContactSet:
         body_j: ``(M,)`` int64 antagonist body, ``-1`` for the wall.
         shift: ``(M, 3)`` periodic image shift added to ``x_j``, d.
         normal: ``(M, 3)`` unit normal from j towards i.
-        ctype: ``(M,)`` int64 contact type 1/2/3.
+        ctype: ``(M,)`` int64 geometric contact type 1/2/3 (rank of all the points).
         point_start: ``(M+1,)`` int64 CSR offsets into the point arrays.
         point: ``(P, 3)`` contact points (world), d.
         gap: ``(P,)`` signed gaps, d.

@@ -1,0 +1,69 @@
+"""Coordination numbers of a packing under each contact-type rule, and their sensitivity.
+
+Usage::
+
+    python benchmarks/contact_types.py RUN_DIR_OR_GSD [...]
+
+For each ``final.gsd`` (or any packing GSD) prints, over the bulk grains, N / Ns / Nd / Nt / Nc on
+the backbone and with the rattlers, and the rattler fraction, for the types from the
+force-bearing points (at several point thresholds ``point_tol``), from the gap rule (at several
+gap tolerances) and from detection; then the distribution of the point normal forces relative to
+the largest one of their manifold, which is what ``point_tol`` cuts.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from granpack.analysis import Coordination
+from granpack.analysis.coordination import _manifold_max, force_bearing, point_normal_force
+from granpack.analysis.solid_fraction import bulk_range
+from granpack.io.gsd import read_packing
+
+
+def _row(label: str, backbone: dict, with_rattlers: dict, rattlers: float) -> str:
+    def f(d):
+        return " / ".join(f"{d[k]:5.2f}" for k in ("N", "Ns", "Nd", "Nt", "Nc"))
+
+    return f"{label:<28} {f(backbone)}   {f(with_rattlers)}   {rattlers:5.3f}"
+
+
+def report(path: Path) -> None:
+    gsd = path / "final.gsd" if path.is_dir() else path
+    packing = read_packing(gsd)
+    z_bot, z_top, valid = bulk_range(packing)
+    print(f"\n{gsd}: {packing.n_particles} grains, {packing.contacts.n_manifolds} manifolds, "
+          f"{packing.contacts.n_points} points, bulk z = {z_bot:.2f} .. {z_top:.2f} d")
+    print(f"{'rule':<28} {'backbone N / Ns / Nd / Nt / Nc':<35}   {'with rattlers':<35}   rattlers")
+    base = Coordination((z_bot, z_top)).compute(packing)
+    print(_row("detection (geometric)", base.by_rule["geometric"], base.by_rule["geometric"]["with_rattlers"],
+               base.by_rule["geometric"]["rattler_fraction"]))
+    for point_tol in (0.0, 1e-6, 1e-3, 1e-2, 1e-1):
+        co = Coordination((z_bot, z_top), point_tol=point_tol).compute(packing)
+        print(_row(f"force, point_tol {point_tol:g}", co.figures, co.with_rattlers, co.rattler_fraction))
+    for gap_tol in (1e-5, 1e-4, 1e-3):
+        co = Coordination((z_bot, z_top), gap_tol=gap_tol).compute(packing)
+        g = co.by_rule["gap_rule"]
+        print(_row(f"gap rule, gap_tol {gap_tol:g}", g, g["with_rattlers"], g["rattler_fraction"])
+              + f"   same type as force: {g['same_type_as_force']:.3f}")
+    c = packing.contacts
+    fn = point_normal_force(packing)
+    active = force_bearing(packing)[c.point_manifold]
+    ratio = fn[active] / _manifold_max(fn, c.point_start)[active]
+    edges = np.array([0.0, 1e-9, 1e-6, 1e-4, 1e-3, 1e-2, 1e-1, 1.0])
+    counts = np.bincount(np.searchsorted(edges, ratio, side="left"), minlength=len(edges))
+    labels = ["<= 0", "(0, 1e-9]", "(1e-9, 1e-6]", "(1e-6, 1e-4]", "(1e-4, 1e-3]", "(1e-3, 1e-2]", "(1e-2, 0.1]", "(0.1, 1]"]
+    print("points of force-bearing manifolds by f_n / max f_n of their manifold: "
+          + ", ".join(f"{lab}: {n}" for lab, n in zip(labels, counts)))
+    if not valid:
+        print("warning: no valid bulk region")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 2:
+        sys.exit(__doc__)
+    for arg in sys.argv[1:]:
+        report(Path(arg))
