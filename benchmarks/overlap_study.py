@@ -82,7 +82,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         start = time.perf_counter()
-        summary = simulation.run_packing(config, out, progress=False)
+        summary = simulation.run_packing(config, out, overwrite=True, progress=False)
         wall = time.perf_counter() - start
         packing = read_packing(out / simulation.FINAL_FILE)
     overlap = np.maximum(0.0, -packing.contacts.gap)

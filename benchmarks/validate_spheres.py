@@ -61,7 +61,7 @@ def main() -> None:
     })
     out = args.out / f"{args.case}-n{config.n_particles}-seed{args.seed}"
     start = time.perf_counter()
-    summary = run_packing(config, out, progress=args.progress)
+    summary = run_packing(config, out, overwrite=True, progress=args.progress)  # a scratch folder per case
     analysis = analyze_run(out)
     co = analysis["coordination"]
     print(json.dumps({

@@ -1,11 +1,19 @@
-"""``granpack check``: the mixture table on good input; exit 2 and one line on bad input."""
+"""The ``granpack`` command: ``check`` on good and bad configs; usage errors, exit statuses and Ctrl-C;
+what ``run`` does with a folder that holds work; output for scripts and logs (``--json``, whole
+tables, progress lines, one-line warnings)."""
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import signal
+import stat
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from granpack.cli import main
@@ -87,7 +95,9 @@ def test_check_prints_mixture_table(tmp_path, capsys, monkeypatch):
     path = tmp_path / "good.toml"
     path.write_text(GOOD)
     code, out, err = run_main(["check", str(path)], capsys)
-    assert code == 0 and err == ""
+    assert code == 0
+    # 3000 grains, 70 % of the volume in 239 unit pinacoids: 1.3 d high over 8 d x 8 d
+    assert err.startswith("warning: the settled pile will stand about 1.3 d high") and err.count("\n") == 1
     for text in ("pinacoid-1-1x1", "pinacoid-0.333333-1x1", "239", "2761", "0.700000", "0.700347", "0.299653",
                  "N = 3000", "lateral size = 8 d", "time step 0.002", "alert distance = 0.02 d (automatic)"):
         assert text in out, text
@@ -121,3 +131,432 @@ def test_python_dash_m_granpack(tmp_path):
                           capture_output=True, text=True)
     assert good.returncode == 0 and good.stderr == ""
     assert "N = 300" in good.stdout and "lateral size = 3 d" in good.stdout
+
+
+# ----------------------------------------------------------------------------- usage errors, exit statuses
+
+
+def _one_error_line(err: str) -> str:
+    assert "Traceback" not in err and err.count("\n") == 1, err
+    assert err.startswith("error: "), err
+    return err
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["runn"], "No such command 'runn'"),
+        (["run", "c.toml"], "Missing option '--out'"),
+        (["run"], "Missing argument 'CONFIG'"),
+        (["run", "c.toml", "--out", "o", "--seed", "abc"], "'--seed'"),
+        (["run", "c.toml", "--out", "o", "--colour", "1"], "No such option: --colour"),
+        (["campaign", "s.toml", "--out", "o", "--workers", "abc"], "'--workers'"),
+        (["check"], "Missing argument 'CONFIG'"),
+        (["analyze", "a", "b"], "unexpected extra argument"),
+        (["export", "d", "--format", "obj"], "--format must be one of vtk, png"),
+    ],
+)
+def test_usage_errors_are_one_line_and_exit_2(argv, expected, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_main(argv, capsys)
+    assert code == 2 and out == ""
+    assert expected.lower() in _one_error_line(err).lower()
+    assert not (tmp_path / "o").exists()
+
+
+def test_no_command_version_and_help_from_the_installed_entry_point():
+    granpack = [sys.executable, "-m", "granpack"]
+    bare = subprocess.run(granpack, capture_output=True, text=True)
+    assert bare.returncode == 2 and bare.stdout == ""
+    assert "no command given" in _one_error_line(bare.stderr) and "run" in bare.stderr
+    version = subprocess.run(granpack + ["--version"], capture_output=True, text=True)
+    from granpack import __version__
+
+    assert (version.returncode, version.stdout, version.stderr) == (0, f"granpack {__version__}\n", "")
+    usage = subprocess.run(granpack + ["runn"], capture_output=True, text=True)
+    assert usage.returncode == 2 and "No such command 'runn'" in _one_error_line(usage.stderr)
+    helped = subprocess.run(granpack + ["run", "--help"], capture_output=True, text=True)
+    assert helped.returncode == 0 and "--overwrite" in helped.stdout and "--resume" in helped.stdout
+
+
+def test_usage_errors_are_caught_as_the_installed_typer_raises_them():
+    """The handler catches the exception classes of the click that typer really uses (typer >= 0.20
+    ships its own copy: catching the click package's classes never matched)."""
+    import typer.main
+
+    import granpack.cli as cli
+
+    command = typer.main.get_command(cli.app)
+    with pytest.raises(cli._CLICK_EXCEPTION) as info:
+        command.main(args=["runn"], prog_name="granpack", standalone_mode=False)
+    assert info.value.exit_code == 2
+
+
+def test_a_failed_campaign_exits_1(tmp_path, capsys, monkeypatch):
+    import granpack.campaign as campaign
+    from granpack.campaign.runner import CampaignReport
+
+    spec = tmp_path / "c.toml"
+    spec.write_text(_TINY_CAMPAIGN)
+    report = CampaignReport(n_runs=2, n_skipped=0, n_done=1, n_failed=1, runs=None, summary=None)
+    monkeypatch.setattr(campaign, "run_campaign", lambda *a, **k: report)
+    code, out, err = run_main(["campaign", str(spec), "--out", str(tmp_path / "out")], capsys)
+    assert code == 1 and "1 failed" in out
+    assert "1 run(s) failed" in _one_error_line(err)
+
+
+def test_campaign_out_is_a_file_exits_2(tmp_path, capsys):
+    spec = tmp_path / "c.toml"
+    spec.write_text(_TINY_CAMPAIGN)
+    target = tmp_path / "results.csv"
+    target.write_text("mine")
+    code, out, err = run_main(["campaign", str(spec), "--out", str(target)], capsys)
+    assert code == 2 and "is a file, not a folder" in _one_error_line(err)
+    assert target.read_text() == "mine"
+
+
+def test_an_interrupted_campaign_exits_130_with_one_line(tmp_path, capsys, monkeypatch):
+    import granpack.campaign as campaign
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    spec = tmp_path / "c.toml"
+    spec.write_text(_TINY_CAMPAIGN)
+    monkeypatch.setattr(campaign, "run_campaign", interrupted)
+    code, out, err = run_main(["campaign", str(spec), "--out", str(tmp_path / "out")], capsys)
+    assert code == 130 and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("interrupted") and "resume" in err
+
+
+_TINY_CAMPAIGN = """\
+replicas = 1
+[base]
+n_particles = 20
+lateral_size = 3.0
+[base.equilibrium]
+max_time = 0.5
+[[mixtures]]
+name = "mono"
+[[mixtures.populations]]
+shape = "sphere"
+size = 1.0
+volume_fraction = 1.0
+"""
+
+# ----------------------------------------------------------------------------- runs: tiny configs
+
+TINY_RUN = """\
+seed = 3
+n_particles = 20
+lateral_size = 3.0
+
+[[populations]]
+shape = "sphere"
+size = 1.0
+volume_fraction = 1.0
+
+[equilibrium]
+max_time = 1.0
+
+[output]
+checkpoint_interval = 0.5
+"""
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """A finished tiny run (20 spheres, 1 sqrt(d/g)) made by `granpack run`, umask 022."""
+    root = tmp_path_factory.mktemp("finished")
+    config = root / "tiny.toml"
+    config.write_text(TINY_RUN)
+    saved = os.umask(0o022)
+    try:
+        done = subprocess.run([sys.executable, "-m", "granpack", "run", str(config), "--out", str(root / "run")],
+                              capture_output=True, text=True)
+    finally:
+        os.umask(saved)
+    assert done.returncode == 0, done.stderr
+    return config, root / "run", done
+
+
+def _snapshot(folder: Path) -> dict:
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_run_outputs_are_readable_by_others_and_piped_progress_is_lines(finished):
+    _, out, done = finished
+    for name in ("config.toml", "final.gsd", "summary.json"):
+        assert stat.S_IMODE((out / name).stat().st_mode) == 0o644, name
+    # stderr was a pipe: progress lines (no bar, no terminal control codes)
+    assert "\x1b[" not in done.stderr and "━" not in done.stderr
+    lines = done.stderr.splitlines()
+    assert lines[0].startswith("pouring 20 grains") and lines[1].startswith("poured in")
+    settling = [line for line in lines if line.startswith("settling t = ")]
+    assert settling and "kinetic energy" in settling[0] and "largest net force" in settling[0]
+    assert "contacts" in settling[0] and "criteria met" in settling[0]
+    assert done.stdout.startswith("not at rest after 1.00 sqrt(d/g)")
+
+
+def test_summary_names_the_total_kinetic_energy(finished):
+    _, out, _ = finished
+    summary = json.loads((out / "summary.json").read_text())
+    assert "total_kinetic_energy" in summary["final"] and "kinetic_energy" not in summary["final"]
+    assert "kinetic_energy" in summary["equilibrium"]  # the per-grain criterion
+
+
+@pytest.mark.parametrize("extra", [[], ["--seed", "4"]])
+def test_run_into_a_finished_run_exits_2_naming_resume_and_overwrite(finished, capsys, extra):
+    config, out, _ = finished
+    before = _snapshot(out)
+    code, stdout, err = run_main(["run", str(config), "--out", str(out), *extra], capsys)
+    assert code == 2 and stdout == ""
+    assert "finished run" in _one_error_line(err) and "--resume" in err and "--overwrite" in err
+    assert _snapshot(out) == before
+
+
+def test_resume_of_a_finished_run_leaves_it(finished, capsys):
+    config, out, _ = finished
+    before = _snapshot(out)
+    code, stdout, err = run_main(["run", str(config), "--out", str(out), "--resume"], capsys)
+    assert code == 0 and "nothing to resume" in err and "not at rest after 1.00" in stdout, err
+    assert _snapshot(out) == before
+
+
+def test_resume_and_overwrite_exclude_each_other(finished, capsys):
+    config, out, _ = finished
+    code, _, err = run_main(["run", str(config), "--out", str(out), "--resume", "--overwrite"], capsys)
+    assert code == 2 and "exclude each other" in _one_error_line(err)
+
+
+def test_run_out_is_a_file_exits_2(finished, tmp_path, capsys):
+    config, _, _ = finished
+    target = tmp_path / "notes.txt"
+    target.write_text("mine")
+    code, _, err = run_main(["run", str(config), "--out", str(target)], capsys)
+    assert code == 2 and "is a file, not a folder" in _one_error_line(err) and target.read_text() == "mine"
+
+
+def test_overwrite_replaces_the_run_its_analysis_figures_and_exports_not_the_users_files(finished, tmp_path, capsys):
+    config, source, _ = finished
+    out = tmp_path / "run"
+    shutil.copytree(source, out)
+    (out / "analysis.json").write_text("{}")
+    for folder, name in (("figures", "packing.png"), ("vtk", "grains.vtu")):
+        (out / folder).mkdir()
+        (out / folder / name).write_text("old")
+    (out / "figures" / "my-notes.txt").write_text("mine")
+    (out / "README.txt").write_text("mine")
+    code, stdout, err = run_main(["run", str(config), "--out", str(out), "--seed", "5", "--overwrite"], capsys)
+    assert code == 0, err
+    assert "--overwrite: removed final.gsd, summary.json" in err and "analysis.json" in err
+    assert not (out / "analysis.json").exists() and not (out / "vtk").exists()
+    assert [p.name for p in (out / "figures").iterdir()] == ["my-notes.txt"]
+    assert (out / "README.txt").read_text() == "mine"
+    assert json.loads((out / "summary.json").read_text())["seed"] == 5
+
+
+def test_run_never_replaces_the_users_config(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "config.toml").write_text(TINY_RUN)
+    code, _, err = run_main(["run", "config.toml", "--out", "."], capsys)
+    assert code == 2 and "would replace this file" in _one_error_line(err)
+    (tmp_path / "mine.toml").write_text(TINY_RUN)
+    code, _, err = run_main(["run", "mine.toml", "--out", "."], capsys)
+    assert code == 2 and "not a granpack run's resolved config" in _one_error_line(err)
+    assert (tmp_path / "config.toml").read_text() == TINY_RUN
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["config.toml", "mine.toml"]
+
+
+def test_run_json_prints_the_summary(finished, tmp_path, capsys):
+    config, _, _ = finished
+    code, stdout, err = run_main(["run", str(config), "--out", str(tmp_path / "r"), "--json"], capsys)
+    assert code == 0, err
+    result = json.loads(stdout)
+    assert result["out"] == str(tmp_path / "r") and result["files"]["final.gsd"] == str(tmp_path / "r" / "final.gsd")
+    assert result["summary"]["status"] == "not at rest" and result["summary"]["steps"] == 200
+
+
+# ----------------------------------------------------------------------------- Ctrl-C
+
+
+def _interrupting_advance(monkeypatch, at_calls, times=1):
+    """Make simulation.advance send SIGINT to this process (``times`` in a row) at the given calls,
+    as Ctrl-C would."""
+    import granpack.simulation as simulation
+
+    advance = simulation.advance
+    calls = {"n": 0}
+
+    def wrapped(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] in at_calls:
+            for _ in range(times):
+                signal.raise_signal(signal.SIGINT)
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(simulation, "advance", wrapped)
+    return advance
+
+
+def test_ctrl_c_while_settling_writes_the_checkpoint_and_resumes_bit_for_bit(finished, tmp_path, capsys, monkeypatch):
+    from granpack.io.gsd import read_packing
+
+    config, whole, _ = finished
+    out = tmp_path / "run"
+    advance = _interrupting_advance(monkeypatch, {137})
+    code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)
+    assert code == 130 and stdout == ""
+    last = err.splitlines()[-1]
+    assert last.startswith("interrupted at t = 0.685 sqrt(d/g) (step 137)") and "Traceback" not in err
+    assert last.endswith(f"continue with: granpack run {config} --out {out} --resume")
+    checkpoint = read_packing(out / "checkpoint.gsd")
+    assert checkpoint.metadata["counters"]["step"] == 137 and not (out / "final.gsd").exists()
+
+    import granpack.simulation as simulation
+
+    monkeypatch.setattr(simulation, "advance", advance)
+    code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)  # no silent restart
+    assert code == 2 and "unfinished run" in _one_error_line(err) and "t = 0.685" in err
+    code, stdout, err = run_main(["run", str(config), "--out", str(out), "--resume"], capsys)
+    assert code == 0 and f"resuming from t = 0.685 sqrt(d/g) (step 137) of {out / 'checkpoint.gsd'}" in err
+    a, b = read_packing(whole / "final.gsd"), read_packing(out / "final.gsd")
+    for name in ("position", "quaternion", "velocity", "omega"):
+        np.testing.assert_array_equal(getattr(a.state, name), getattr(b.state, name))
+
+
+def test_a_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(finished, tmp_path, capsys, monkeypatch):
+    config, _, _ = finished
+    out = tmp_path / "run"
+    _interrupting_advance(monkeypatch, {150}, times=2)
+    code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)
+    last = err.splitlines()[-1]
+    assert code == 130 and "Traceback" not in err
+    assert last.startswith("interrupted; the last checkpoint at t = 0.5 sqrt(d/g) (step 100) is kept in")
+    assert last.endswith("--resume")
+
+
+def test_ctrl_c_inside_a_numba_kernel_is_an_interruption(finished, tmp_path, capsys, monkeypatch):
+    """A KeyboardInterrupt raised while a compiled function runs surfaces as a SystemError
+    ("CPUDispatcher(...) returned a result with an exception set") with the interrupt as context."""
+    import granpack.simulation as simulation
+
+    def kernel_interrupted(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("CPUDispatcher(<function f>) returned a result with an exception set")
+
+    config, _, _ = finished
+    monkeypatch.setattr(simulation, "run_packing", kernel_interrupted)
+    code, stdout, err = run_main(["run", str(config), "--out", str(tmp_path / "r")], capsys)
+    assert code == 130 and err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("interrupted before the first checkpoint") and "--resume" in err
+
+
+def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path):
+    """A real Ctrl-C (SIGINT to the process) while settling: exit 130, one line naming --resume."""
+    config = tmp_path / "long.toml"
+    config.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 500.0\nkinetic_tolerance = 1e-30"))
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "-m", "granpack", "run", str(config), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lines = []
+        for line in proc.stderr:  # progress lines: the first comes at the first check (t = 0.25)
+            lines.append(line)
+            if line.startswith("settling t = "):
+                break
+        proc.send_signal(signal.SIGINT)
+        stdout, rest = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = "".join(lines) + rest
+    assert proc.returncode == 130 and stdout == "" and "Traceback" not in err
+    assert rest.count("\n") == 1 and rest.startswith("interrupted at t = ") and rest.rstrip().endswith("--resume")
+    assert (out / "checkpoint.gsd").is_file() and not (out / "final.gsd").exists()
+
+
+# ----------------------------------------------------------------------------- output for scripts and logs
+
+
+def test_check_prints_whole_tables_when_not_a_terminal(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "40")
+    path = tmp_path / "seven.toml"
+    shares = [1 / 7] * 6 + [1 - 6 / 7]
+    body = "".join(f'[[populations]]\nshape = "pinacoid"\nsize = {1 - 0.1 * k:g}\naspect = [1.5, 1.25]\n'
+                   f"volume_fraction = {share!r}\n\n" for k, share in enumerate(shares))
+    path.write_text(f"n_particles = 3000\nlateral_size = 8.0\n\n{body}")
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and "…" not in out
+    assert "pinacoid-0.4-1.5x1.25" in out and "0.142857" in out and "overlap slop" in out
+    assert max(len(line) for line in out.splitlines()) > 80
+
+
+def test_check_json_and_the_short_column_warning(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_RUN)
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and err.count("\n") == 1
+    assert err.startswith("warning: the settled pile will stand about 1.9 d high") and "bulk region" in err
+    code, out, err = run_main(["check", str(path), "--json"], capsys)
+    result = json.loads(out)
+    assert result["valid"] and result["n_particles"] == 20 and result["mixture"][0]["count"] == 20
+    assert result["resolved"]["solver"]["time_step"] == 5e-3 and "bulk region" in result["warnings"][0]
+    code, out, err = run_main(["check", str(EXAMPLES / "demo.toml")], capsys)
+    assert code == 0 and err == ""  # the demo's pile has a bulk region
+
+
+def test_analyze_warnings_are_clean_lines_with_the_true_cause(finished, tmp_path, capsys):
+    _, source, _ = finished
+    out = tmp_path / "run"
+    shutil.copytree(source, out)
+    code, stdout, err = run_main(["analyze", str(out)], capsys)
+    assert code == 0
+    assert err.splitlines() == [line for line in err.splitlines() if line.startswith("warning: ")]
+    assert "no bulk region: the pile's free surface is at" in err and "Warning" not in err and ".py" not in err
+    assert "no non-spherical grain" not in err and "fewer than two grains" not in err
+    assert "none (surface at" in stdout and " .. " not in stdout.split("bulk region")[1].splitlines()[0]
+    code, stdout, err = run_main(["analyze", str(out), "--json"], capsys)
+    result = json.loads(stdout)
+    assert result["file"] == str(out / "analysis.json") and result["analysis"]["bulk"]["valid"] is False
+    assert result["analysis"]["warnings"][0].startswith("no bulk region")
+
+    code, stdout, err = run_main(["figures", str(out)], capsys)
+    assert code == 0 and not (out / "figures" / "pair_correlation.png").exists()
+    assert "skipped pair_correlation: g(r) is empty (no bulk region" in stdout
+
+
+def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from granpack.simulation import _SettlingProgress
+
+    report = SimpleNamespace(force_ok=True, torque_ok=False, energy_ok=False, wall_ok=True, max_net_force=1.2e-2,
+                             kinetic_energy=3e-5, max_net_torque=1e-3, wall_force_over_weight=0.9998)
+    progress = _SettlingProgress("bar", 200.0, 5e-3)
+    with progress:
+        progress._bar.stop()
+        progress.update(123.456, 1.23e-3, 1234, report, 2, 5)
+        screen = io.StringIO()
+        Console(file=screen, width=80).print(progress._bar.get_renderable())
+    line = screen.getvalue().splitlines()[0]
+    assert line.startswith("settling t = 123.46/200") and len(line) <= 80
+
+
+def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
+    import granpack.simulation as simulation
+
+    from granpack.config import load_config
+
+    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_RUN)
+    simulation.run_packing(load_config(path), tmp_path / "r", progress="lines")
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("settling t = ")]
+    assert len(lines) == 4 and lines[-1].startswith("settling t = 1.00/1 sqrt(d/g), step 200, ")
+    assert "steps/s" in lines[-1]

@@ -1,27 +1,127 @@
 """The ``granpack`` command.
 
-Every command turns bad input (:class:`~granpack.errors.InputError`,
-:class:`~granpack.shapes.ShapeError`) into a one-line ``error: ...`` on stderr and exit status 2.
+Exit status: 0 on success; 2 for bad input or a usage error (one line ``error: ...`` on stderr,
+never a traceback: an unknown command or option, a missing or malformed value, a bad config, an
+output folder that would lose work); 1 for a campaign with failed runs, or a file the system
+refuses (permissions, disk full); 130 when interrupted by Ctrl-C (one line; a run keeps its
+checkpoint and the line gives the command that resumes it).
+
+Streams: results go to stdout (with ``--json``, one JSON document instead of the tables);
+progress, notes and warnings go to stderr, one line each. Tables are cut to the terminal's width
+on a terminal only: redirected, they are printed whole.
 """
 
 from __future__ import annotations
 
+import json
 import sys
+import warnings
 from pathlib import Path
-from typing import Optional
+from typing import NoReturn, Optional
 
 import typer
+import typer.main
 
-from granpack.errors import InputError
+from granpack import __version__
+from granpack.errors import InputError, RunInterrupted
 from granpack.shapes import ShapeError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, help="Dense random packings of rigid grains (NSCD).")
+__all__ = ["app", "main", "demo_config"]
+
+app = typer.Typer(add_completion=False, help="Dense random packings of rigid grains (NSCD).")
+
+
+class _Stop(Exception):
+    """Ends a command with one line on stderr and an exit status (raised inside commands)."""
+
+    def __init__(self, message: str, code: int):
+        super().__init__(message)
+        self.message = message
+        self.code = code
+
+
+def _click_module():
+    """The click that typer really uses: its own copy (typer >= 0.20) or the click package."""
+    vendored = getattr(typer.main, "_click", None)
+    if vendored is not None:
+        return vendored
+    import click
+
+    return click
+
+
+_CLICK = _click_module()
+_CLICK_EXCEPTION = _CLICK.exceptions.ClickException
+_ABORT = tuple({typer.Abort, getattr(_CLICK.exceptions, "Abort", typer.Abort)})
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"granpack {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True,
+                                 help="Print the version and exit."),
+) -> None:
+    """Dense random packings of rigid grains (NSCD): check a config, run, analyse, draw, export."""
+
+
+def _console(stderr: bool = False):
+    """A rich console: the terminal's width on a terminal, unlimited otherwise (files, pipes)."""
+    from rich.console import Console
+
+    stream = sys.stderr if stderr else sys.stdout
+    isatty = getattr(stream, "isatty", None)
+    if isatty is not None and isatty():
+        return Console(stderr=stderr)
+    return Console(stderr=stderr, width=100_000, no_color=True, highlight=False)
+
+
+def _print_json(data) -> None:
+    from granpack.io.json import to_jsonable
+
+    typer.echo(json.dumps(to_jsonable(data), indent=2, allow_nan=False))
+
+
+def _note(message: str) -> None:
+    typer.echo(message, err=True)
+
+
+def _column_warning(cfg, mixture) -> str | None:
+    """A warning when the settled pile is expected to be too low for a bulk region (else None).
+
+    The height is estimated as the grains' volume over the cell area at a solid fraction of
+    0.6; the bulk region of ``granpack analyze`` starts ``n_bottom d`` above the wall, ends
+    ``n_top d`` below the surface and must be at least ``d`` thick (``d`` the largest grain size,
+    :class:`granpack.analysis.report.AnalysisOptions`).
+    """
+    from granpack.analysis.report import AnalysisOptions
+
+    opt = AnalysisOptions()
+    rows = mixture.table()
+    volume = sum(row["count"] * row["particle_volume"] for row in rows)
+    d = max(row["size"] for row in rows)
+    height = volume / (0.6 * cfg.lateral_size ** 2)
+    needed = (opt.n_bottom + opt.n_top + 1.0) * d
+    if height >= needed:
+        return None
+    n_needed = int(-(-cfg.n_particles * needed // height)) + 1 if height > 0 else None
+    more = f"about {n_needed} grains" if n_needed else "more grains"
+    return (f"the settled pile will stand about {height:.2g} d high (solid fraction about 0.6 over the "
+            f"{cfg.lateral_size:g} d x {cfg.lateral_size:g} d cell), below the {needed:g} d that a bulk region "
+            f"needs ({opt.n_bottom:g} d above the wall, {d:g} d of bulk, {opt.n_top:g} d below the surface): "
+            f"the bulk figures of `granpack analyze` will be nan; use {more} or a narrower cell")
 
 
 @app.command()
-def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None:
-    """Validate CONFIG and print the mixture table."""
-    from rich.console import Console
+def check(
+    config: Path = typer.Argument(..., help="Run config (TOML)."),
+    json_output: bool = typer.Option(False, "--json", help="Print the result as JSON."),
+) -> None:
+    """Validate CONFIG and print the mixture table and the settings."""
     from rich.table import Table
     from rich.text import Text
 
@@ -30,6 +130,15 @@ def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None
 
     cfg = load_config(config)
     mixture = Mixture.from_config(cfg)
+    warning = _column_warning(cfg, mixture)
+    if json_output:
+        _print_json({
+            "config": str(config), "valid": True, "n_particles": mixture.n_particles,
+            "lateral_size": cfg.lateral_size, "seed": cfg.seed, "alert_distance": cfg.resolved_alert_distance,
+            "mixture": mixture.table(), "resolved": cfg.model_dump(mode="json"),
+            "warnings": [warning] if warning else [],
+        })
+        return
     table = Table(title=Text(f"{config}: mixture of N = {mixture.n_particles} grains"))
     for heading in ("population", "shape", "size (d)", "aspect L/G, G/E", "count", "requested share",
                     "achieved share", "grain volume (d^3)"):
@@ -39,7 +148,7 @@ def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None
         table.add_row(row["population"], row["shape"], f"{row['size']:.6g}", aspect, str(row["count"]),
                       f"{row['requested_share']:.6f}", f"{row['achieved_share']:.6f}", f"{row['particle_volume']:.6g}")
     solver, eq = cfg.solver, cfg.equilibrium
-    console = Console()
+    console = _console()
     console.print(table)
     console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
                   f"alert distance = {cfg.resolved_alert_distance:g} d"
@@ -50,16 +159,22 @@ def check(config: Path = typer.Argument(..., help="Run config (TOML).")) -> None
                   f"overlap slop {solver.overlap_slop:g} d ({solver.pour_overlap_slop:g} while grains move fast)", markup=False)
     console.print(f"equilibrium: max time {eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
                   f"{cfg.deposit.lateral} lateral boundaries", markup=False)
+    if warning:
+        _note(f"warning: {warning}")
 
 
 @app.command()
-def demo(out: Path = typer.Option(Path("granpack-demo"), "--out", help="Output folder.")) -> None:
+def demo(
+    out: Path = typer.Option(Path("granpack-demo"), "--out", help="Output folder."),
+    resume: bool = typer.Option(False, "--resume", help="Continue the demo run in OUT from its checkpoint."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace the run that OUT holds (analysis, figures, exports too)."),
+) -> None:
     """A small complete packing (about 300 isometric pinacoids), poured, settled and analysed."""
     config = demo_config()
     typer.echo(f"granpack demo: {config.n_particles} isometric pinacoids in a {config.lateral_size:g} d x "
                f"{config.lateral_size:g} d periodic cell -> {out}/")
-    _run_and_report(config, out, resume=False)
-    analyze(out)
+    _run_and_report(config, out, resume=resume, overwrite=overwrite, again=f"granpack demo --out {out}")
+    analyze(out, json_output=False)
     typer.echo(f"files: {out / 'final.gsd'} (OVITO), {out / 'summary.json'}, {out / 'analysis.json'}; "
                f"ParaView: granpack export {out} --format vtk; figures: granpack figures {out}")
 
@@ -75,10 +190,44 @@ def demo_config():
     return load_config_dict(tomllib.loads(text), source="demo.toml")
 
 
-def _run_and_report(config, out: Path, resume: bool) -> dict:
+def _interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is Ctrl-C: a KeyboardInterrupt, or the SystemError that Numba raises when
+    one lands inside a compiled function (the KeyboardInterrupt is its cause or context)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
+def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
+    """The one-line message and exit status 130 of a run stopped by Ctrl-C."""
+    from granpack.simulation import CHECKPOINT_FILE, _checkpoint_when
+
+    if isinstance(exc, RunInterrupted):
+        return _Stop(f"interrupted at t = {exc.time:.6g} sqrt(d/g) (step {exc.step}), checkpoint written to "
+                     f"{exc.checkpoint}; continue with: {again} --resume", 130)
+    checkpoint = out / CHECKPOINT_FILE
+    if checkpoint.is_file():
+        return _Stop(f"interrupted; the last checkpoint{_checkpoint_when(checkpoint)} is kept in {checkpoint}; "
+                     f"continue with: {again} --resume", 130)
+    return _Stop("interrupted before the first checkpoint: there is nothing for --resume to continue from; "
+                 "run the same command again to start over", 130)
+
+
+def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False) -> dict:
     from granpack.simulation import run_packing
 
-    summary = run_packing(config, out, resume=resume, progress=sys.stderr.isatty())
+    try:
+        summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not _interrupted(exc):
+            raise
+        raise _run_interrupted(exc, out, again) from None
+    if json_output:
+        return summary
     eq = summary["equilibrium"]
     typer.echo(
         f"{summary['status']} after {summary['simulated_time']:.2f} sqrt(d/g) ({summary['steps']} steps, "
@@ -93,38 +242,77 @@ def _run_and_report(config, out: Path, resume: bool) -> dict:
     return summary
 
 
+def _protect_input(config_path: Path, out: Path, resolved_text: str) -> None:
+    """Refuse a run whose resolved config would replace the input file itself with other text
+    (``granpack run config.toml --out .``)."""
+    from granpack.simulation import CONFIG_FILE
+
+    target = out / CONFIG_FILE
+    try:
+        same = target.exists() and config_path.exists() and target.samefile(config_path)
+    except OSError:
+        return
+    if same and config_path.read_text(encoding="utf-8") != resolved_text:
+        raise InputError(f"{config_path}: the run writes its resolved config (every default filled in) to "
+                         f"{target}, which would replace this file; choose another --out folder")
+
+
 @app.command()
 def run(
     config: Path = typer.Argument(..., help="Run config (TOML)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
-    resume: bool = typer.Option(False, "--resume", help="Continue from the last checkpoint."),
+    resume: bool = typer.Option(False, "--resume", help="Continue the run in OUT from its checkpoint."),
+    overwrite: bool = typer.Option(False, "--overwrite",
+                                   help="Replace the run that OUT holds (its analysis, figures and exports too)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
+    json_output: bool = typer.Option(False, "--json", help="Print the result (files and summary) as JSON."),
 ) -> None:
-    """One packing to equilibrium: writes OUT/config.toml, final.gsd, summary.json (and checkpoints)."""
+    """One packing to equilibrium: writes OUT/config.toml, final.gsd, summary.json (and checkpoints).
+
+    A folder that holds a run is refused unless --resume (continue it; a finished run is left as
+    it is) or --overwrite (replace it) is given. Ctrl-C stops at the end of the step and writes
+    the checkpoint (exit status 130).
+    """
     from granpack.config import load_config
 
     cfg = load_config(config)
     if seed is not None:
         cfg = cfg.with_seed(seed)
-    _run_and_report(cfg, out, resume=resume)
+    _protect_input(config, out, cfg.to_toml())
+    again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
+    summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output)
+    if json_output:
+        _print_json({"out": str(out), "files": {name: str(out / name) for name in ("config.toml", "final.gsd", "summary.json")},
+                     "summary": summary})
+        return
     typer.echo(f"files: {out / 'final.gsd'}, {out / 'summary.json'}; next: granpack analyze {out}")
 
 
 @app.command()
-def analyze(run_dir: Path = typer.Argument(..., help="A run folder holding final.gsd.")) -> None:
+def analyze(
+    run_dir: Path = typer.Argument(..., help="A run folder holding final.gsd."),
+    json_output: bool = typer.Option(False, "--json", help="Print the analysis (analysis.json) as JSON."),
+) -> None:
     """Analyse a packing: writes RUN_DIR/analysis.json and prints a table."""
-    from rich.console import Console
     from rich.table import Table
 
+    from granpack.analysis import AnalysisWarning
     from granpack.analysis.report import analyze_run, summary_rows
 
-    result = analyze_run(run_dir)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AnalysisWarning)  # printed below, one line each
+        result = analyze_run(run_dir)
+    for message in result["warnings"]:
+        _note(f"warning: {message}")
+    if json_output:
+        _print_json({"run_dir": str(run_dir), "file": str(run_dir / "analysis.json"), "analysis": result})
+        return
     table = Table(title=f"{run_dir / 'analysis.json'}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
     for name, value in summary_rows(result):
         table.add_row(name, value)
-    Console().print(table)
+    _console().print(table)
 
 
 @app.command()
@@ -134,21 +322,29 @@ def campaign(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Workers of the local Dask cluster."),
 ) -> None:
-    """A sweep of mixtures x replicas; rerunning skips finished runs.
+    """A sweep of mixtures x replicas; rerunning skips finished runs and resumes interrupted ones.
 
     Writes one run folder per (mixture, replica) in OUT, runs.csv, runs.parquet and summary.csv.
-    Exit status 1 when some runs failed (their errors are in runs.csv and their folders).
+    Exit status 1 when some runs failed (their errors are in runs.csv and their folders), 130
+    when interrupted (Ctrl-C; finished runs and checkpoints are kept).
     """
     from granpack.campaign import load_campaign, run_campaign
 
-    report = run_campaign(load_campaign(spec), out, scheduler=scheduler, workers=workers)
+    loaded = load_campaign(spec)
+    try:
+        report = run_campaign(loaded, out, scheduler=scheduler, workers=workers)
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not _interrupted(exc):
+            raise
+        raise _Stop(f"interrupted; finished runs and the checkpoints of unfinished ones are kept in {out}: continue "
+                    f"with: granpack campaign {spec} --out {out} (each unfinished run resumes from its checkpoint, "
+                    "as with run --resume)", 130) from None
     typer.echo(
         f"{report.n_runs} runs: {report.n_done} done ({report.n_skipped} already finished), "
         f"{report.n_failed} failed; tables in {out / 'runs.csv'} and {out / 'summary.csv'}"
     )
     if report.n_failed:
-        typer.echo(f"error: {report.n_failed} run(s) failed; see the 'error' column of {out / 'runs.csv'}", err=True)
-        raise typer.Exit(1)
+        raise _Stop(f"error: {report.n_failed} run(s) failed; see the 'error' column of {out / 'runs.csv'}", 1)
 
 
 @app.command()
@@ -158,11 +354,16 @@ def figures(
         None, "--mixture", help="Campaign: a mixture to show in the g(r) and homogeneity figures (repeatable; default all)."
     ),
 ) -> None:
-    """PNG/SVG figures for a run or a campaign, written into RUN_DIR/figures/."""
+    """PNG/SVG figures for a run or a campaign, written into RUN_DIR/figures/; says which it skipped and why."""
     from granpack.figures import make_figures
 
     paths = make_figures(run_dir, mixtures=mixture or None)
-    typer.echo(f"{len(paths)} files in {run_dir / 'figures'}: {', '.join(sorted({p.stem for p in paths}))}")
+    if paths:
+        typer.echo(f"{len(paths)} files in {run_dir / 'figures'}: {', '.join(sorted({p.stem for p in paths}))}")
+    else:
+        typer.echo(f"no figure written in {run_dir / 'figures'}")
+    for stem, why in getattr(paths, "skipped", {}).items():
+        typer.echo(f"skipped {stem}: {why}")
 
 
 @app.command()
@@ -188,22 +389,75 @@ def export(
     typer.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
-def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the typer app, mapping input errors to exit status 2."""
-    try:
-        app(args=argv, standalone_mode=False)
-    except (InputError, ShapeError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
-    except typer.Exit as exc:  # --help and friends
-        raise SystemExit(exc.exit_code) from None
-    except Exception as exc:  # click usage errors (bad option) also exit 2
-        import click
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
 
-        if isinstance(exc, click.exceptions.ClickException):
-            exc.show()
-            raise SystemExit(exc.exit_code) from None
-        if isinstance(exc, click.exceptions.Abort):
-            raise SystemExit(130) from None
-        raise
-    raise SystemExit(0)
+
+def _usage_line(exc) -> str:
+    """``error: granpack run: Missing option '--out'. (see granpack run --help)``."""
+    ctx = getattr(exc, "ctx", None)
+    where = ctx.command_path if ctx is not None and getattr(ctx, "command_path", None) else "granpack"
+    message = _one_line(exc.format_message())
+    if isinstance(exc, _CLICK.exceptions.UsageError):
+        return f"error: {where}: {message} (see {where} --help)"
+    return f"error: {where}: {message}"
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings as one line on stderr, without the source path and line."""
+    from granpack.analysis import AnalysisWarning
+
+    text = _one_line(message)
+    if not issubclass(category, AnalysisWarning):
+        text = f"{category.__name__}: {text}"
+    print(f"warning: {text}", file=sys.stderr if file is None else file)
+
+
+def _commands() -> str:
+    return ", ".join(getattr(typer.main.get_command(app), "commands", {}))
+
+
+def _main(args: list[str]) -> int:
+    """Run the command of ``args``; return the exit status (messages already printed)."""
+    if not args:
+        print(f"error: no command given (one of {_commands()}); see granpack --help", file=sys.stderr)
+        return 2
+    command = typer.main.get_command(app)
+    shown = warnings.showwarning
+    warnings.showwarning = _show_warning
+    try:
+        code = command.main(args=args, prog_name="granpack", standalone_mode=False)
+    except _Stop as exc:
+        print(exc.message, file=sys.stderr)
+        return exc.code
+    except (InputError, ShapeError) as exc:
+        print(f"error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except _CLICK_EXCEPTION as exc:  # usage errors (exit 2) and click's own (file errors, exit 1)
+        print(_usage_line(exc), file=sys.stderr)
+        return exc.exit_code
+    except _ABORT as exc:
+        if _interrupted(exc):
+            print("interrupted", file=sys.stderr)
+            return 130
+        print("error: aborted", file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not _interrupted(exc):
+            raise
+        print("interrupted", file=sys.stderr)
+        return 130
+    except OSError as exc:  # the system refused a file (permissions, disk full, ...): not a bug
+        name = f" {exc.filename}" if exc.filename else ""
+        print(f"error:{name}: {exc.strerror or _one_line(exc)}", file=sys.stderr)
+        return 1
+    finally:
+        warnings.showwarning = shown
+    if code == 130:  # typer turns a KeyboardInterrupt in a command into exit status 130, silently
+        print("interrupted", file=sys.stderr)
+    return code if isinstance(code, int) else 0
+
+
+def main(argv: list[str] | None = None) -> NoReturn:
+    """Entry point: run the command; exit with its status (0, 1, 2 or 130, module docstring)."""
+    raise SystemExit(_main(sys.argv[1:] if argv is None else list(argv)))

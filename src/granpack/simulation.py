@@ -53,6 +53,9 @@ from __future__ import annotations
 
 import math
 import os
+import signal
+import sys
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -64,7 +67,7 @@ from granpack.config import RunConfig
 from granpack.contact import ContactSet, Detector
 from granpack.deposit import deposit
 from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
-from granpack.errors import InputError
+from granpack.errors import InputError, RunInterrupted
 from granpack.io.atomic import write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
@@ -191,7 +194,8 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
     saved = read_packing(path)
     meta = saved.metadata
     if meta.get("config") != config.to_toml():
-        raise InputError(f"{path}: checkpoint of another config; remove it or run without --resume")
+        raise InputError(f"{path}: checkpoint of another config than {out_dir / CONFIG_FILE}; resume with that config, "
+                         "or replace the run with --overwrite")
     s = saved.state
     state = ParticleState(box=Box.square(config.lateral_size), shapes=mixture.particle_shape_table(), kind=s.kind,
                           population=s.population, position=s.position, quaternion=s.quaternion,
@@ -200,34 +204,185 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
     return state, saved.contacts, counters
 
 
-def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, progress: bool = True) -> dict:
-    """Pour and settle one packing; write its files; return its summary.
+#: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
+#: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
+RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, "timeline.csv", "analysis.json", "packing.png")
+#: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
+#: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
+RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
 
-    Args:
-        config: the validated run config.
-        out_dir: output folder (created if needed).
-        resume: continue from ``out_dir/checkpoint.gsd`` if there is one (else start afresh);
-            a finished run (``summary.json`` and ``final.gsd`` present, same config) is returned
-            as it is.
-        progress: show progress bars (deposit, settling) on the terminal.
+
+def _progress_mode(progress: bool | str) -> str:
+    """``"bar"``, ``"lines"`` or ``"off"`` for the ``progress`` argument of :func:`run_packing`."""
+    if progress is True:
+        isatty = getattr(sys.stderr, "isatty", None)
+        return "bar" if isatty is not None and isatty() else "lines"
+    if progress is False or progress is None:
+        return "off"
+    if progress in ("bar", "lines", "off"):
+        return str(progress)
+    raise ValueError(f"progress must be True, False, 'bar', 'lines' or 'off' (got {progress!r})")
+
+
+class _Notes:
+    """One-line notes on stderr (resuming, overwriting; the pour in ``"lines"`` mode); none when silent."""
+
+    def __init__(self, mode: str):
+        self.mode = mode
+
+    def __call__(self, message: str, lines_only: bool = False) -> None:
+        if self.mode == "off" or (lines_only and self.mode != "lines"):
+            return
+        print(message, file=sys.stderr, flush=True)
+
+
+def _is_resolved_config(path: Path, config_text: str) -> bool:
+    """Whether ``path`` is a resolved config as granpack writes it (this run's or another's)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    if text == config_text:
+        return True
+    from granpack.config import load_config
+
+    try:
+        return load_config(path).to_toml() == text
+    except InputError:
+        return False
+
+
+def _checkpoint_when(path: Path) -> str:
+    """`` at t = ... (step ...)`` of a checkpoint, or nothing if it cannot be read."""
+    try:
+        meta = read_packing(path).metadata
+        return f" at t = {float(meta['time']):.6g} sqrt(d/g) (step {int(meta['step'])})"
+    except (InputError, KeyError, TypeError, ValueError, OSError):
+        return ""
+
+
+def _clear_run(out_dir: Path) -> list[str]:
+    """Remove the run in ``out_dir`` (:data:`RUN_FILES`, granpack's files in :data:`RUN_FOLDERS`);
+    a sub-folder goes too when nothing else is left in it. Returns what was removed."""
+    removed = []
+    for name in RUN_FILES:
+        if (out_dir / name).is_file():
+            (out_dir / name).unlink()
+            removed.append(name)
+    for folder, suffixes in RUN_FOLDERS.items():
+        path = out_dir / folder
+        if not path.is_dir():
+            continue
+        ours = [p for p in path.iterdir() if p.is_file() and p.suffix in suffixes]
+        for p in ours:
+            p.unlink()
+        if ours:
+            removed.append(f"{folder}/")
+        if not any(path.iterdir()):
+            path.rmdir()
+    return removed
+
+
+def _claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bool, note: _Notes) -> bool:
+    """Check ``out_dir`` for :func:`run_packing` and create it; clear it with ``overwrite``.
 
     Returns:
-        The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
-        ``"not at rest"``), steps, simulated and wall times, NLGS statistics, the last
-        equilibrium figures and the largest overlap.
+        True if ``resume`` finds a finished run of this config (returned as it is).
 
     Raises:
-        InputError: ``out_dir`` cannot be created, or its checkpoint belongs to another config.
+        InputError: see :func:`run_packing`.
     """
-    out_dir = Path(out_dir)
+    if resume and overwrite:
+        raise InputError("--resume and --overwrite exclude each other: continue the run in the folder, or replace it")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir}: is a file, not a folder")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"--out {out_dir}: cannot create the folder ({exc.strerror})") from None
+    present = [name for name in RUN_FILES if (out_dir / name).is_file()]
+    config_path = out_dir / CONFIG_FILE
+    if config_path.exists() and not present and not _is_resolved_config(config_path, config_text):
+        raise InputError(f"{config_path}: not a granpack run's resolved config (your own file?) and the run writes "
+                         "its resolved config there; choose another --out folder")
+    finished = (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file()
+    checkpoint = out_dir / CHECKPOINT_FILE
+    replace_hint = "--overwrite replaces it (its analysis, figures and exports go too)"
+    if resume:
+        if finished:
+            if config_path.is_file() and config_path.read_text(encoding="utf-8") == config_text:
+                note(f"{out_dir} holds a finished run of this config: nothing to resume, its summary stands")
+                return True
+            raise InputError(f"{out_dir}: holds a finished run of another config ({config_path}); nothing to "
+                             f"--resume: {replace_hint}, or choose another --out folder")
+        if checkpoint.is_file():
+            return False
+        if present:
+            raise InputError(f"{out_dir}: no {CHECKPOINT_FILE} to --resume from, but the folder holds "
+                             f"{', '.join(present)}: {replace_hint}, or choose another --out folder")
+        note(f"no {CHECKPOINT_FILE} in {out_dir}: nothing to resume, starting afresh")
+        return False
+    if present and not overwrite:
+        if finished:
+            what = "a finished run (final.gsd, summary.json): --resume returns it as it is, " + replace_hint
+        elif checkpoint.is_file():
+            what = (f"an unfinished run (its checkpoint{_checkpoint_when(checkpoint)}): --resume continues it, "
+                    + replace_hint)
+        else:
+            what = f"the outputs of a run ({', '.join(present)}): {replace_hint} (--resume needs a checkpoint)"
+        raise InputError(f"{out_dir}: holds {what}")
+    if overwrite:
+        removed = _clear_run(out_dir)
+        if removed:
+            note(f"--overwrite: removed {', '.join(removed)} from {out_dir}")
+    return False
+
+
+def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, overwrite: bool = False,
+                progress: bool | str = True) -> dict:
+    """Pour and settle one packing; write its files; return its summary.
+
+    No work is lost without a word: a folder that holds a run (any of :data:`RUN_FILES`) is
+    continued with ``resume``, replaced with ``overwrite``, and refused otherwise; a
+    ``config.toml`` there that is not a granpack run's (a folder without a run, a config that
+    is not a resolved one) is never replaced.
+
+    Args:
+        config: the validated run config.
+        out_dir: output folder (created if needed).
+        resume: continue from ``out_dir/checkpoint.gsd``; a finished run (``summary.json`` and
+            ``final.gsd``) of the same config is returned as it is; a folder without a run is
+            started afresh.
+        overwrite: replace the run that ``out_dir`` holds: its :data:`RUN_FILES` and the
+            figures and exports of :data:`RUN_FOLDERS` are removed first (other files stay).
+        progress: ``"bar"``: progress bars on stderr; ``"lines"``: a progress line on stderr
+            every 30 s of wall time (for logs); ``True``: the bars if stderr is a terminal, else
+            the lines; ``False``: nothing. Notes (resuming, overwriting) go to stderr unless
+            ``False``.
+
+    Returns:
+        The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
+        ``"not at rest"``), steps, simulated and wall times, NLGS statistics, the last
+        equilibrium figures (``equilibrium``: the criteria, e.g. ``kinetic_energy`` is the largest
+        kinetic energy of a grain over ``d_p^3 P``) and the final state (``final``:
+        ``total_kinetic_energy`` is the sum over the grains, in ``rho g d^4``, i.e. ``m g d`` for
+        a mass ``m`` of ``d^3`` of grain; contacts; the largest overlap in d).
+
+    Raises:
+        InputError: ``out_dir`` cannot be created or is a file; it holds a run and neither
+            ``resume`` nor ``overwrite`` is given (or both are); its ``config.toml`` is not a
+            granpack run's; its checkpoint or finished run belongs to another config.
+        RunInterrupted: Ctrl-C (SIGINT, when running in the main thread) while settling: the run
+            stopped at the end of the step and wrote its checkpoint (a second Ctrl-C stops at once,
+            keeping the last checkpoint). During the pour Ctrl-C raises KeyboardInterrupt (there is
+            no checkpoint yet).
+    """
+    out_dir = Path(out_dir)
+    mode = _progress_mode(progress)
+    note = _Notes(mode)
     config_text = config.to_toml()
-    if resume and (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file():
-        if (out_dir / CONFIG_FILE).is_file() and (out_dir / CONFIG_FILE).read_text(encoding="utf-8") == config_text:
-            return read_json(out_dir / SUMMARY_FILE)
+    if _claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note):
+        return read_json(out_dir / SUMMARY_FILE)
     wall_start = time.perf_counter()
     mixture = Mixture.from_config(config)
     resumed = _resume_from(out_dir, config, mixture) if resume else None  # refused before anything is written
@@ -238,11 +393,15 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
         (out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
         t0 = time.perf_counter()
-        state, mixture = initial_state(config, progress=progress)
+        note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
+             lines_only=True)
+        state, mixture = initial_state(config, progress=mode == "bar")
         counters = _Counters(deposit_seconds=time.perf_counter() - t0)
+        note(f"poured in {counters.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None
     else:
         state, contacts, counters = resumed
+        note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {counters.step}) of {out_dir / CHECKPOINT_FILE}")
         truncate_frames(out_dir / TRAJECTORY_FILE, counters.step)
     wall_before = counters.wall_seconds
 
@@ -272,8 +431,9 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
     step_h = h
 
-    bar = _SettlingProgress(progress, eq.max_time)
-    with bar:
+    bar = _SettlingProgress(mode, eq.max_time, h)
+    interrupt = _Interrupt()
+    with bar, interrupt:
         while counters.step < n_steps_max:
             alert, substeps = step_alert(state, params.alert, h, ceiling)
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
@@ -313,6 +473,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             if counters.step % checkpoint_every == 0:
                 counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                 write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
+            if interrupt.requested:  # Ctrl-C: stop here, the checkpoint of this step written
+                if counters.step % checkpoint_every != 0:
+                    counters.wall_seconds = wall_before + time.perf_counter() - wall_start
+                    write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
+                raise RunInterrupted(out_dir / CHECKPOINT_FILE, state.time, counters.step)
 
     if report is None or counters.step % check_every != 0:
         report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), step_h,
@@ -364,8 +529,8 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "split_steps": c.split_steps,
         "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
         "equilibrium": report.as_dict(),
-        "final": {
-            "kinetic_energy": kinetic_energy(state),
+        "final": {  # the last state; total kinetic energy in rho g d^4 (the per-grain criterion: "equilibrium")
+            "total_kinetic_energy": kinetic_energy(state),
             "contacts": contacts.n_manifolds if contacts is not None else 0,
             "contact_points": n_points,
             "max_overlap": float(max(0.0, -gaps.min())) if len(gaps) else 0.0,
@@ -375,35 +540,106 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
     }
 
 
-class _SettlingProgress:
-    """A rich progress bar over simulated time with kinetic energy, contacts and criteria (or nothing)."""
+#: wall-clock seconds between two progress lines (``progress="lines"``)
+_PROGRESS_LINE_SECONDS = 30.0
 
-    def __init__(self, enabled: bool, max_time: float):
-        self.enabled = enabled
+
+def _criteria_met(report: EquilibriumReport) -> str:
+    met = [name for name, ok in (("force", report.force_ok), ("torque", report.torque_ok),
+                                 ("energy", report.energy_ok), ("wall", report.wall_ok)) if ok]
+    return " ".join(met) if met else "none"
+
+
+class _SettlingProgress:
+    """Progress of the settling on stderr, updated at each equilibrium check.
+
+    ``"bar"``: a rich progress bar; the simulated time comes first and stays on an 80-column
+    terminal, the figures after the bar are cut to the width left. ``"lines"``: one line every
+    :data:`_PROGRESS_LINE_SECONDS` of wall time (the first at the first check): simulated time,
+    step, steps per second, total kinetic energy, largest net force, contacts, criteria met.
+    ``"off"``: nothing.
+    """
+
+    def __init__(self, mode: str, max_time: float, time_step: float):
+        self.mode = mode
         self.max_time = max_time
+        self.time_step = time_step
         self._bar = None
         self._task = None
+        self._last: tuple[float, float] | None = None  # (wall clock, simulated time) of the last line
 
     def __enter__(self):
-        if self.enabled:
+        if self.mode == "bar":
+            from rich.console import Console
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+            from rich.table import Column
 
-            self._bar = Progress(TextColumn("settling t = {task.completed:7.2f} / {task.total:g} sqrt(d/g)"), BarColumn(),
-                                 TimeElapsedColumn(), TextColumn("{task.fields[info]}"))
+            self._bar = Progress(
+                TextColumn("settling t = {task.completed:.2f}/{task.total:g}", table_column=Column(no_wrap=True)),
+                BarColumn(bar_width=12),
+                TimeElapsedColumn(),
+                TextColumn("{task.fields[info]}", table_column=Column(no_wrap=True, overflow="ellipsis", ratio=1)),
+                console=Console(stderr=True),
+                expand=True,
+            )
             self._bar.__enter__()
             self._task = self._bar.add_task("settling", total=self.max_time, info="")
         return self
 
     def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int) -> None:
-        if self._bar is None:
-            return
-        flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
-                                                              ("E", report.energy_ok), ("W", report.wall_ok)))
-        info = (f"Ek {ek:.2e}  contacts {n_contacts}  |F| {report.max_net_force:.1e}  |T| {report.max_net_torque:.1e}  "
-                f"E {report.kinetic_energy:.1e}  W {report.wall_force_over_weight:.4f}  [{flags}] {passes}/{window}")
-        self._bar.update(self._task, completed=min(t, self.max_time), info=info)
+        if self.mode == "bar" and self._bar is not None:
+            flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
+                                                                  ("E", report.energy_ok), ("W", report.wall_ok)))
+            info = (f"[{flags}] {passes}/{window}  |F| {report.max_net_force:.1e}  E {report.kinetic_energy:.1e}  "
+                    f"Ek {ek:.2e}  contacts {n_contacts}  |T| {report.max_net_torque:.1e}  "
+                    f"W {report.wall_force_over_weight:.4f}")
+            self._bar.update(self._task, completed=min(t, self.max_time), info=info)
+        elif self.mode == "lines":
+            now = time.perf_counter()
+            if self._last is not None and now - self._last[0] < _PROGRESS_LINE_SECONDS:
+                return
+            rate = ""
+            if self._last is not None and now > self._last[0]:
+                rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
+            self._last = (now, t)
+            print(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
+                  f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
+                  f"{n_contacts} contacts, criteria met: {_criteria_met(report)} ({passes}/{window} checks)",
+                  file=sys.stderr, flush=True)
 
     def __exit__(self, *exc):
         if self._bar is not None:
             self._bar.__exit__(*exc)
+        return False
+
+
+class _Interrupt:
+    """Ctrl-C while settling: SIGINT sets :attr:`requested`, which the loop reads once per step
+    (it then writes its checkpoint and raises :class:`~granpack.errors.RunInterrupted`); a second
+    Ctrl-C raises KeyboardInterrupt at once.
+
+    A flag rather than an exception because SIGINT often lands inside a Numba kernel, where an
+    exception surfaces as ``SystemError: CPUDispatcher(...) returned a result with an exception
+    set`` with the state half-updated. The handler is installed only in the main thread and only
+    over Python's default one (a host that handles SIGINT itself keeps its handler).
+    """
+
+    def __init__(self):
+        self.requested = False
+        self._previous = None
+
+    def _handle(self, signum, frame) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
         return False

@@ -25,6 +25,7 @@ import logging
 import os
 import time
 import traceback
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Iterator
@@ -32,6 +33,7 @@ from typing import TYPE_CHECKING, Iterator
 import pandas as pd
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from granpack.analysis._base import AnalysisWarning
 from granpack.campaign.spec import CampaignSpec, RunSpec
 from granpack.campaign.store import (
     ANALYSIS_FILE,
@@ -100,7 +102,8 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
 
     Returns:
         ``{"status": "done" | "failed", "action": "simulated" | "resumed" | "analysed",
-        "error": last line of the error or None, "wall_time": seconds}``.
+        "error": last line of the error or None, "wall_time": seconds, "warnings": number of
+        analysis warnings (listed in the run's analysis.json)}``.
     """
     run_dir = Path(out_dir) / run.folder
     start = time.perf_counter()
@@ -119,11 +122,14 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
             _clear_outputs(run_dir)
             write_task(run_dir, run)
         config = load_config_dict(run.config, source=run.folder.as_posix())
-        if action != "analysed":
-            run_packing(config, run_dir, resume=action == "resumed", progress=False)
-        analyze_run(run_dir)
+        if action != "analysed":  # the campaign owns its run folders: a run started afresh replaces what is there
+            run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress=False)
+        with warnings.catch_warnings():  # kept in analysis.json ("warnings"), not printed by the workers
+            warnings.simplefilter("ignore", AnalysisWarning)
+            result = analyze_run(run_dir)
         clear_error(run_dir)
-        return {"status": "done", "action": action, "error": None, "wall_time": time.perf_counter() - start}
+        return {"status": "done", "action": action, "error": None, "wall_time": time.perf_counter() - start,
+                "warnings": len(result.get("warnings") or [])}
     except Exception as exc:  # a task reports its failure instead of raising: the others go on
         with contextlib.suppress(OSError):
             write_error(run_dir, traceback.format_exc())
@@ -209,7 +215,10 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                 label = run.folder.as_posix()
                 if outcome["status"] == "done":
                     done += 1
-                    bar.console.print(f"done    {label} ({outcome['action']}, {outcome['wall_time']:.1f} s)")
+                    n_warnings = outcome.get("warnings") or 0
+                    note = f"; {n_warnings} analysis warning(s) in its analysis.json" if n_warnings else ""
+                    bar.console.print(f"done    {label} ({outcome['action']}, {outcome['wall_time']:.1f} s{note})",
+                                      markup=False, highlight=False)
                 elif attempts[run.folder] < MAX_ATTEMPTS:
                     bar.console.print(f"retry   {label}: {outcome['error']}")
                     submit(run)
@@ -250,14 +259,22 @@ def run_campaign(
         The report with both tables. The tables are written even when interrupted.
 
     Raises:
-        InputError: bad ``workers``/``scheduler`` combination, or an unreachable scheduler.
+        InputError: bad ``workers``/``scheduler`` combination, an unreachable scheduler, or an
+            ``out_dir`` that is a file or cannot be created.
+        KeyboardInterrupt: Ctrl-C; the tables are written, the runs' checkpoints are kept, and a
+            new call goes on from them.
     """
     if workers is not None and workers < 1:
         raise InputError(f"--workers must be >= 1 (got {workers})")
     if workers is not None and scheduler is not None:
         raise InputError("--workers applies to the local cluster only; leave it out with --scheduler")
     out_dir = Path(out_dir).resolve()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir}: is a file, not a folder")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: cannot create the folder ({exc.strerror})") from None
     if spec.source_text:
         (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
     todo = [run for run in spec.runs if not is_finished(out_dir, run)]
