@@ -1,13 +1,13 @@
 """The packing protocol: pluviation, NSCD settling to equilibrium, checkpoints, outputs.
 
-:func:`run_packing` is the whole of ``granpack run`` (PHYSICS.md §4):
+:func:`run_packing` is the whole of ``granpack run`` (docs: Method > Pluviation):
 
 1. grains get their population (shuffled, :mod:`granpack.mixture`), a random orientation and
    their circumscribed sphere (the shell); the shells are deposited one by one
    (:mod:`granpack.deposit`, lateral walls or periodic as configured); the walls then give way to
    the periodic cell (the centres are already inside it);
 2. the grains replace the shells, at rest, and the Moreau–Jean scheme (:mod:`granpack.nscd`)
-   advances them under gravity until the equilibrium criteria (PHYSICS.md §5b,
+   advances them under gravity until the equilibrium criteria (docs: Method > Equilibrium,
    :mod:`granpack.equilibrium`) hold at ``window`` consecutive checks (one every
    ``check_interval``), or until ``max_time``: the run then ends with status ``"not at rest"``
    and its figures, not an error.
@@ -18,17 +18,22 @@ fewer sweeps during the collapse); from the first check below that level on, to
 ``solver.tolerance``, and only checks made with it count towards the equilibrium window, since
 the force criteria need converged forces.
 
-Overlap correction. While grains move fast (the alert distance is raised, see below) the
-post-step projection of :mod:`granpack.nscd.integrator` removes overlaps above
-``solver.pour_overlap_slop`` (1e-4 d): impacts would otherwise leave overlaps of up to 5e-3 d that
-the velocity-level law never pushes back. Once the pile is slow it only acts above
-``solver.overlap_slop`` (5e-3 d, a safety net): acting at every step on a slow pinacoid pile, it
-moves grains that the next step moves back and keeps the pile from coming to rest.
+End game. Once the kinetic criterion falls below ``solver.damping_below`` (the collapse is over),
+with ``solver.end_game = "damping"`` every step but the checked ones scales the velocities by
+``exp(-damping_rate h)`` (:mod:`granpack.nscd.integrator`), until a check passes; a failed check
+turns it back on. Frictionless grains swinging on closed contacts dissipate nothing, and an
+undamped pile keeps a steady level of small motions long after it has collapsed; the damping
+vanishes at rest, so it changes how fast the pile gets to its static equilibrium, not which
+forces hold it there, and the criteria are only ever met on undamped steps.
+
+Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
+above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
+alert distance raised, see below); the velocity-level law alone never pushes an overlap back.
 
 Alert distance. Contacts are detected on the predicted configuration of each step; a pair must
 be a candidate before it can close. During the pour grains fall at several sqrt(g d), more than
 the configured alert distance per step, so the alert distance of a step is raised to cover the
-largest closing speed (PHYSICS.md §2.11):
+largest closing speed (docs: Method > NSCD, alert distance and substeps):
 
 .. math:: a_n = \\max\\big(a, \\; 1.5\\,(2 h \\max_p (|v_p| + R_p |ω_p|) + g h^2)\\big)
 
@@ -43,8 +48,9 @@ each other. The Verlet skin is at most a quarter of the room the alert distance 
 Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
 grows frame by frame and is cut back to the checkpoint on resume):
 ``config.toml`` (resolved), ``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at
-the end), ``trajectory.gsd`` (a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``
-and ``summary.json``. A killed run resumed with ``resume=True`` continues from its checkpoint
+the end), ``trajectory.gsd`` (a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``,
+``summary.json`` and ``timeline.csv`` (one row per equilibrium check: :data:`TIMELINE_COLUMNS`).
+A killed run resumed with ``resume=True`` continues from its checkpoint
 and ends with the same packing, bit for bit, as an uninterrupted run: the checkpoint holds the
 exact double-precision state, the contacts that warm-start the next step, and the loop counters.
 """
@@ -88,6 +94,15 @@ CHECKPOINT_FILE = "checkpoint.gsd"
 FINAL_FILE = "final.gsd"
 SUMMARY_FILE = "summary.json"
 TRAJECTORY_FILE = "trajectory.gsd"
+TIMELINE_FILE = "timeline.csv"
+#: columns of ``timeline.csv``, one row per equilibrium check; counts and sums over the interval
+#: since the previous check, figures of the equilibrium test at the check
+TIMELINE_COLUMNS = (
+    "time", "step", "kinetic_energy_total", "kinetic_criterion", "max_net_force", "max_net_torque",
+    "wall_force_over_weight", "nlgs_tolerance", "mean_sweeps", "max_sweeps", "unconverged_steps",
+    "corrected_steps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
+    "wall_seconds", "cpu_seconds",
+)
 
 #: Verlet skin of the broad phase, as a fraction of the smallest grain size
 _SKIN_FRACTION = 0.1
@@ -107,18 +122,23 @@ class _Counters:
     near_rest: bool = False  # the fine NLGS tolerance is in use (once set, for good)
     iterations_total: int = 0
     iterations_max: int = 0
+    interval_max_sweeps: int = 0  # most sweeps of a step since the last check
     unconverged_steps: int = 0
     point_updates: int = 0
     max_overlap: float = 0.0
     correction_steps: int = 0
     correction_energy: float = 0.0
+    end_game: bool = False  # the end game's damping has started (once set, for good)
+    damped_energy: float = 0.0
     split_steps: int = 0  # steps split into substeps (alert distance above the cell's ceiling)
     solves: int = 0  # NLGS velocity solves (one per step, k per split step)
     detection_seconds: float = 0.0
     solver_seconds: float = 0.0
     deposit_seconds: float = 0.0
     wall_seconds: float = 0.0
+    cpu_seconds: float = 0.0  # process CPU time of the settling (all threads)
     last_report: dict = field(default_factory=dict)
+    timeline: list = field(default_factory=list)  # one row per equilibrium check, TIMELINE_COLUMNS
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)
@@ -404,6 +424,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {counters.step}) of {out_dir / CHECKPOINT_FILE}")
         truncate_frames(out_dir / TRAJECTORY_FILE, counters.step)
     wall_before = counters.wall_seconds
+    cpu_before, cpu_start = counters.cpu_seconds, time.process_time()
 
     params = step_parameters(config)
     settling_tolerance = config.solver.settling_tolerance
@@ -439,7 +460,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             slop = params.overlap_slop if alert == params.alert else min(params.overlap_slop, pour_slop)
             step_h = h / substeps
-            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h)
+            checking = (counters.step + 1) % check_every == 0
+            damping = config.solver.damping_rate if counters.end_game and counters.passes == 0 and not checking else 0.0
+            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
+                                  damping=damping)
             for _ in range(substeps):
                 prediction = predict(state, step_params)
                 t0 = time.perf_counter()
@@ -449,11 +473,13 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.solves += 1
                 counters.iterations_total += info.iterations
                 counters.iterations_max = max(counters.iterations_max, info.iterations)
+                counters.interval_max_sweeps = max(counters.interval_max_sweeps, info.iterations)
                 counters.unconverged_steps += 0 if info.converged else 1
                 counters.point_updates += info.iterations * info.n_points
                 counters.max_overlap = max(counters.max_overlap, info.max_overlap)
                 counters.correction_steps += 1 if info.correction_iterations else 0
                 counters.correction_energy += info.correction_energy
+                counters.damped_energy += info.damped_energy
                 counters.detection_seconds += info.detection_seconds
                 counters.solver_seconds += info.solver_seconds
             counters.step += 1
@@ -462,7 +488,13 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             if counters.step % check_every == 0:
                 report = check_equilibrium(state, contacts, step_h, criteria=criteria)
                 counters.passes = counters.passes + 1 if report.passed and counters.near_rest else 0
-                counters.near_rest = counters.near_rest or report.kinetic_energy < _NEAR_REST * criteria.kinetic_energy
+                counters.end_game = counters.end_game or (
+                    config.solver.end_game == "damping" and report.kinetic_energy < config.solver.damping_below)
+                counters.near_rest = (counters.near_rest or counters.end_game
+                                      or report.kinetic_energy < _NEAR_REST * criteria.kinetic_energy)
+                counters.wall_seconds = wall_before + time.perf_counter() - wall_start
+                counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
+                _timeline_row(counters, state, contacts, report, tolerance)
                 counters.last_report = report.as_dict()
                 bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window)
                 if counters.passes >= eq.window:
@@ -484,11 +516,38 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                                    criteria=criteria)
         counters.last_report = report.as_dict()
     counters.wall_seconds = wall_before + time.perf_counter() - wall_start
+    counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
     summary = _summary(config, state, contacts, counters, report, status)
     write_packing(out_dir / FINAL_FILE, packing_now({"status": status, "summary": _headline(summary)}))
     write_json(out_dir / SUMMARY_FILE, summary)
+    write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     return summary
+
+
+def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
+                  tolerance: float) -> None:
+    """Append the row of this check to ``c.timeline`` (interval sums from the previous row's totals)."""
+    totals = (c.solves, c.iterations_total, c.unconverged_steps, c.correction_steps, c.correction_energy,
+              c.damped_energy)
+    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0, 0, 0, 0, 0.0, 0.0)
+    d = [a - b for a, b in zip(totals, previous)]
+    gaps = contacts.gap
+    c.timeline.append([
+        state.time, c.step, kinetic_energy(state), report.kinetic_energy, report.max_net_force,
+        report.max_net_torque, report.wall_force_over_weight, tolerance, d[1] / max(d[0], 1), c.interval_max_sweeps,
+        d[2], d[3], d[4], d[5], contacts.n_manifolds, contacts.n_points,
+        float(max(0.0, -gaps.min())) if len(gaps) else 0.0, c.wall_seconds, c.cpu_seconds, *totals,
+    ])
+    c.interval_max_sweeps = 0
+
+
+def _timeline_csv(rows: list) -> str:
+    """``timeline.csv``: a header and one line per check (the running totals kept in the rows dropped)."""
+    lines = [",".join(TIMELINE_COLUMNS)]
+    for row in rows:
+        lines.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in row[:len(TIMELINE_COLUMNS)]))
+    return "\n".join(lines) + "\n"
 
 
 def _headline(summary: dict) -> dict:
@@ -511,6 +570,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "simulated_time": state.time,
         "time_step": config.solver.time_step,
         "wall_time": c.wall_seconds,
+        "cpu_time": c.cpu_seconds,
         "timing": {
             "deposit_seconds": c.deposit_seconds,
             "detection_seconds": c.detection_seconds,
@@ -528,6 +588,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         },
         "split_steps": c.split_steps,
         "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
+        "end_game": {"mode": config.solver.end_game, "started": c.end_game, "kinetic_energy_removed": c.damped_energy},
         "equilibrium": report.as_dict(),
         "final": {  # the last state; total kinetic energy in rho g d^4 (the per-grain criterion: "equilibrium")
             "total_kinetic_energy": kinetic_energy(state),

@@ -1,16 +1,15 @@
 """One Moreau–Jean step: predict, detect, assemble, solve (NLGS), correct positions, update.
 
-The scheme (PHYSICS.md §2.2, formulas in :mod:`granpack.nscd.rigid`): free velocities with
+The scheme (docs: Method > NSCD, formulas in :mod:`granpack.nscd.rigid`): free velocities with
 gravity ``(0, 0, -1)`` and the explicit gyroscopic term; contacts detected on the predicted
 configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried by the contacts' shifts);
 the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS (:mod:`granpack.nscd.nlgs`)
 from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
 ``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into the cell.
 
-Position correction (keeps interpenetration small without adding kinetic energy). The
-velocity-level Signorini law of the scheme (IQS, ``u_n + max(0, g)/h >= 0``) only stops
-overlaps from growing; solver residuals and the rotation non-linearity let them drift. After the
-velocity solve, the end-of-step gap of every point is predicted to first order,
+Position correction (docs: Method > Position correction). The velocity-level Signorini law
+(IQS, ``u_n + max(0, g)/h >= 0``) only stops overlaps from growing. After the velocity solve the
+end-of-step gap of every point is predicted to first order,
 
 .. math:: g^{end}_α = g_α + θ h\\, u_{n,α}^{n+1},
 
@@ -21,113 +20,36 @@ problem for pseudo-impulses ``p`` whose 'velocities' are translations:
 .. math:: 0 \\le p_α \\perp g^{end}_α + (H_x^T M^{-1} H_x p)_α + κ s \\ge 0, \\qquad
           δx = M^{-1} H_x p, \\quad δφ = 0
 
-(``H_x`` the translational rows of ``H``: ``n`` on body i, ``-n`` on j), i.e. the smallest
-mass-weighted translations that bring every linearised gap to ``>= -κ s``, with ``κ`` =
-``CORRECTED_OVERLAP`` (0.1: nearly the whole overlap, see below). Rotations are left
-out on purpose: in the mass metric a rotation of a small grain is cheap, and a small grain wedged
-between larger ones was turned by 20-30 degrees per step, far outside the linearisation, into
-its other neighbours (overlaps of 0.05 d that the next projection moved elsewhere, a pile kept
-agitated; translations only: 0.015 d at worst, measured on a bidisperse pour, size ratio 3).
-No body is pushed further than the overlap it had (no ejection), nor, in one step, by more
-than ``correction_step`` (1e-3 d) in each of two passes (overlaps deeper than that are removed
-over several steps):
+(``H_x`` the translational rows of ``H``), i.e. the smallest mass-weighted translations that bring
+every linearised gap to ``>= -κ s``, ``κ = CORRECTED_OVERLAP``. Velocities are not changed (no
+kinetic energy is added); the potential energy ``Σ m g δz`` of the lift is reported
+(``StepInfo.correction_energy``). Why it is built this way, in short (the measurements are in the
+docs' design notes):
 
-1. the projection above, each body's translation then scaled down to ``correction_step``;
-2. if some body was bounded, the bounded bodies are held still (inverse mass 0) and the others solve
-   the same projection with offsets ``max(g^{end}_α + κ s, 0) + n_α·(δx_i - δx_j)``: no contact
-   may end deeper than it was before the correction, nor a non-overlapping one below
-   ``-κ s``; their translations are scaled by one common factor to ``correction_step``.
+- translations only: in the mass metric a rotation of a small grain is cheap, and grains wedged
+  between larger ones were turned far outside the linearisation;
+- no body moves by more than ``correction_step`` per pass, in two passes (pass 2 holds the bounded
+  bodies and undoes what pass 1's bound dug, its translations scaled by one common factor): an
+  unbounded correction and the gap anticipation of IQS fed each other (a corrected grain fell back
+  into the gaps the correction opened), and a per-body bound alone dug new overlaps;
+- ``κ = 0.1``: a correction that leaves half the slop holds many contacts at ``-s/2`` and the
+  velocity solve then needed far more sweeps at rest;
+- at most ``correction_sweeps`` NLGS sweeps: a partial correction is completed at the next steps.
 
-Pass 1's bound alone is inconsistent: a grain lifted by a deep overlap below it (scaled down 20
-times) no longer makes room for a neighbour pushed sideways into it by a small overlap (not
-scaled), and the correction itself digs new overlaps of up to ``correction_step`` per step. In
-piles of thin plates (flat and flat & elongated pinacoids) this outran the correction: after
-landing, overlaps grew to 0.1-0.2 d, deeper than the plates are thick. Pass 2 undoes it: the
-translations that satisfy its constraints form a convex set holding 0 (where pass 1 dug
-nothing) and its solution, so the common factor keeps them satisfied. One common factor for the
-whole correction (instead of pass 2) is consistent too, but while one overlap is deep (a small
-grain wedged between large ones, an impact) it slows the correction of every other: measured on
-400 flat grains (L/G 1, G/E 3, 2.25 d cell, 30 sqrt(d/g)), the common factor ended with overlaps
-of 0.057 d (mean 5.6e-3, 48 m g d added by the correction), the two passes with 3.4e-3 d (mean
-1.5e-4, 12 m g d); 400 flat & elongated grains: per-body bound 0.091 d at t = 20, two passes
-4.3e-3 d (mean 2.5e-4) at the end. Asking each contact for at most ``correction_step`` (Box2D's
-clamp) with one common factor corrected faster still and fed the treadmill below (flat &
-elongated grains reached 0.13 d). Without the bound the correction and
-the gap anticipation of IQS (``u_n >= -g/h``) fed each other: a corrected grain fell back, at the
-speed it had, into the gaps the correction had opened around it, and the next correction lifted
-it again: a treadmill that kept a column of 600 flat & elongated grains 'falling' at up to
-4 sqrt(g d) (0.35 at the bottom, 4.1 at the top) while it stood still, with a kinetic energy of
-65 m g d and 717 m g d of potential energy added by the correction at the end of a 35 sqrt(d/g)
-run. The bound caps the speed such a cycle can reach at ``2 correction_step / h`` (0.4 sqrt(g d)),
-below which the velocity solve stops it (300 flat grains in a 2.25 d cell after 30 sqrt(d/g):
-wall force 1.009 weight, kinetic energy 2e-3 m g d, mean overlap 1.8e-4 d). Zeroing the
-velocity against the correction instead also breaks the cycle, but acts as a drag on every
-corrected grain (solid fraction 0.55 instead of 0.65, wall force 0.11 weight) and, along ``δx``,
-does not conserve horizontal momentum. Velocities are not changed by the correction; the
-energy it adds is the potential energy ``Σ m g δz`` of lifting overlapping grains back to
-contact, which :class:`StepInfo` reports as ``correction_energy`` so that energy budgets can
-account for it. Overlaps then stay below about ``s`` (plus the detection and linearisation
-error).
+End-game damping (:mod:`granpack.simulation` decides when): with ``damping`` γ > 0 every velocity
+is scaled by ``e^{-γ h}`` after the update, and the kinetic energy removed is reported
+(``StepInfo.damped_energy``).
 
-Where the overlaps come from (measured on the demo pile, 300 isometric pinacoids, by comparing
-each step's predicted end gaps ``g^{end} + n·(δx_i - δx_j)`` with a detection at the end
-configuration, and by continuing a pile at rest; ``benchmarks/overlap_study.py``):
+Energy (e_N = 0, μ = 0). The budget of a step is ``ΔE - correction_energy + damped_energy``. With
+θ = 1 it is ``Σ_α r_α u^{n+1}_α - ½|ΔV|²_M <= 0`` (strictly dissipative). With θ = ½ the impulses
+work at the mean velocity, ``Σ_α r_α (u^n_α + u^{n+1}_α)/2``, and a step gains at most
+``Σ_α r_α max(0, u^n_α)/2`` (a contact pushing although it was opening at t_n): tiny, not zero.
+Both are checked in tests/test_nscd_dynamics.py.
 
-- Points left out of a contact: the narrow phase reduced a clipped contact polygon (up to eight
-  vertices for two pinacoid faces) to four points, and a grain rocking about those sank the
-  others into its neighbour, even in a pile at rest (1000 steps from the demo pile at
-  t = 60: 42 pairs 1e-5 to 1.2e-4 d deeper). Every vertex is now a point
-  (:mod:`granpack.contact.narrowphase`): no pair deeper by more than 1e-5 d. With the
-  reduction, a small ``s`` kept the correction busy at rest (16 % of the steps, 1300 NLGS sweeps
-  per step, the pile never at rest: largest net force 3e-2 d^2 P after 150 sqrt(d/g)).
-- Phantom overlaps: along the face normal that the axis hysteresis keeps (within ``eps_f`` =
-  1e-3 d of the best separating axis) a tilted face-on-face pair overlapped by up to 1e-3 d more
-  than its penetration depth, and the correction pushed the grains along the face normal by
-  them (``s`` = 1e-4 with them: correction at every step, kinetic energy 3.6e-2 m g d, 64 m g d
-  added in 60 sqrt(d/g)). Gaps are never below the penetration depth now.
-- A face-face contact that had begun as an edge-edge one was kept as a single point by the
-  contact hysteresis, its corners free to sink (45 % of the overlap growth between steps of a
-  collapsing pile); fixed in the narrow phase.
-- What remains is made while the pile settles (the NLGS residual at the settling tolerance
-  1e-3, impacts) and is what the correction removes.
-
-Measured on the demo (60 sqrt(d/g), seeds 1, 2, 3; penetration depths of the final touching
-pairs, d; largest net force on a grain, d^2 P; NLGS sweeps per step; tables in
-benchmarks/README.md):
-
-- default (every polygon vertex a point, exact depths, ``s`` = 1e-4, ``κ`` = 0.1): max depth
-  4.9e-5, 8.7e-5, 5.5e-5; mean per pair 8.9e-6, 1.1e-5, 9.4e-6; net force 3.3e-4, 2.6e-4,
-  6.7e-4; 88, 89, 81 sweeps;
-- before (four points, depths along the hysteresis face axis, ``s`` = 5e-3 corrected to
-  ``s/2``): max depth 2.9e-3, 4.0e-3, 1.6e-3; mean 1.3e-4, 1.3e-4, 1.0e-4; net force 5.5e-4,
-  4.1e-4, 1.2e-3; 59, 155, 76 sweeps.
-
-The corrections die out as the pile comes to rest (none after about 45-55 sqrt(d/g)), the NLGS
-then converging in its first check (10 sweeps). The target ``κ`` matters as much as ``s``: a
-correction that leaves half the slop holds many contacts at ``-s/2`` and the velocity NLGS then
-needed about 1700 sweeps per step at rest; one that leaves a tenth (``CORRECTED_OVERLAP``)
-brings the contacts back nearly to touching; one that leaves 0.9 of it corrected at every step
-and kept the pile moving (measured with the four-point manifolds).
-
-The projection gets at most ``correction_sweeps`` (200) NLGS sweeps: lifting a column by
-Gauss–Seidel converges slowly (on
-a pour of flat grains it used its 2000 sweeps at every step, 4 times the cost of the velocity
-solve); a partial correction, which pushes less than the full one, is completed at the next
-steps (measured on 250 isometric pinacoids: half the run time, mean overlap 4.3e-4 d vs 5.1e-4).
-
-Energy (e_N = 0, μ = 0). The budget of a step is ``ΔE - correction_energy``. With θ = 1 it is
-``Σ_α r_α u^{n+1}_α - ½|ΔV|²_M <= 0`` (strictly dissipative). With θ = ½ the impulses work at
-the mean velocity, ``Σ_α r_α (u^n_α + u^{n+1}_α)/2``, and since ``u^{n+1}_α <= 0`` wherever
-``r_α > 0`` a step gains at most ``Σ_α r_α max(0, u^n_α)/2`` (a contact pushing although it was
-opening at t_n): tiny (measured <= 1e-9 of E on a pour) but not zero. Both are checked in
-tests/test_nscd_dynamics.py.
-
-Alert distance: detection sees a pair when its gap at ``TT`` is at most ``params.alert``; a gap
-larger than that must not close within one step, so the alert must exceed the largest approach
-per step, ``2 h max(|v| + r|ω|) + g h²`` (:func:`granpack.nscd.rigid.required_alert`). The
-default 0.05 d covers grains up to 5 sqrt(g d) at h = 5e-3; a pour reaching 8 sqrt(g d) needs
-0.08 d or more, otherwise a contact can appear already interpenetrating by up to the missing
-distance (IQS does not push it back; the position correction then removes it).
+Alert distance: detection sees a pair when its gap at ``TT`` is at most ``params.alert``; a larger
+gap must not close within one step, so the alert must exceed the largest approach per step,
+``2 h max(|v| + r|ω|) + g h²`` (:func:`granpack.nscd.rigid.required_alert`); otherwise a contact
+can appear already interpenetrating by up to the missing distance.
 """
 
 from __future__ import annotations
@@ -140,7 +62,7 @@ import numpy as np
 from granpack.contact.contacts import ContactSet
 from granpack.nscd.nlgs import NLGSOptions, solve
 from granpack.nscd.problem import assemble
-from granpack.nscd.rigid import predict_kernel, update_kernel
+from granpack.nscd.rigid import kinetic_energy, predict_kernel, update_kernel
 from granpack.nscd.warmstart import warm_impulses
 from granpack.state import ParticleState
 
@@ -170,6 +92,9 @@ class StepParameters:
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
         correction_step: largest translation of a body by one position correction, d.
+        damping: rate γ of a viscous damping of every grain's velocity after the step,
+            ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
+            :mod:`granpack.simulation`).
     """
 
     time_step: float = 5e-3
@@ -184,6 +109,7 @@ class StepParameters:
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
+    damping: float = 0.0
 
     def __post_init__(self):
         if not self.time_step > 0:
@@ -225,6 +151,7 @@ class StepInfo:
         max_overlap: largest overlap ``max(0, -g)`` at the predicted configuration, d.
         correction_iterations: NLGS sweeps of the position correction (0 when not needed).
         correction_energy: potential energy ``Σ m g δz`` added by the position correction, m g d.
+        damped_energy: kinetic energy removed by the damping (0 without it), m g d.
         solver_seconds: assembly, warm start, solves and update, s.
         detection_seconds: contact detection, s.
     """
@@ -238,6 +165,7 @@ class StepInfo:
     max_overlap: float
     correction_iterations: int
     correction_energy: float
+    damped_energy: float
     solver_seconds: float
     detection_seconds: float
 
@@ -314,7 +242,7 @@ def advance(
     pr = prediction
     problem = assemble(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
-        restitution=params.restitution, friction=params.friction,
+        restitution=params.restitution, friction=params.friction, side=_sides(pr.x_tt, state.box.lx),
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
     r0, n_warm = warm_impulses(
@@ -337,6 +265,12 @@ def advance(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
         state.position, state.quaternion, state.velocity, state.omega,
     )
+    damped_energy = 0.0
+    if params.damping > 0:
+        factor = np.exp(-params.damping * h)
+        damped_energy = kinetic_energy(state) * (1.0 - factor * factor)
+        state.velocity *= factor
+        state.omega *= factor
     state.time += h
     contacts.impulse = problem.world_impulse(impulse)
     solver_seconds = time.perf_counter() - t0
@@ -350,9 +284,17 @@ def advance(
         max_overlap=max_overlap,
         correction_iterations=correction_iterations,
         correction_energy=correction_energy,
+        damped_energy=damped_energy,
         solver_seconds=solver_seconds,
         detection_seconds=detection_seconds,
     )
+
+
+def _sides(position: np.ndarray, lx: float) -> np.ndarray:
+    """``(N + 1,)`` 0 for the bodies in the half ``x < L_x/2`` of the cell, 1 for the others (wall: 0)."""
+    side = np.zeros(len(position) + 1, np.int64)
+    side[:-1] = position[:, 0] >= 0.5 * lx
+    return side
 
 
 def _position_correction(problem, gap_end: np.ndarray, params: StepParameters) -> tuple[np.ndarray, int]:

@@ -1,6 +1,6 @@
 """Non-linear Gauss–Seidel (NLGS) solver of a :class:`~granpack.nscd.problem.ContactProblem`.
 
-Matrix-free (PHYSICS.md §2.6): body velocities ``V`` (world rows ``(v, ω^w)``) are kept current,
+Matrix-free (docs: Method > NSCD, NLGS): body velocities ``V`` (world rows ``(v, ω^w)``) are kept current,
 starting from ``V_free + M^{-1} H r_0`` (warm start ``r_0``); each point reads its local velocity
 from them, solves its local problem exactly for the normal part and updates both bodies:
 
@@ -19,7 +19,7 @@ points are exactly the Signorini–Coulomb solutions):
 .. math:: r_T \\leftarrow \\mathrm{proj}_{D(μ r_n)}\\big(r_T - ρ_T u_T\\big), \\qquad ρ_T = 1/\\max(W_{tt}, W_{ss})
 
 Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic).
-Convergence: LMGC90's 'Quad' norm (PHYSICS.md §2.7) evaluated on the sweep that ends each block
+Convergence: LMGC90's 'Quad' norm (docs: Method > NSCD, convergence) evaluated on the sweep that ends each block
 of ``check_every`` sweeps, from the last two iterates ``r^k``, ``r^{k-1}`` of each active point
 (``r^k ≠ 0`` or ``r^{k-1} ≠ 0``), ``ΔU = W_αα (r^k - r^{k-1})``, ``r̄ = (r^k + r^{k-1})/2``:
 
@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from granpack._numba import jit
+from granpack._numba import jit, prange
 from granpack.nscd.problem import (
     AIN,
     AIS,
@@ -77,11 +77,17 @@ class NLGSOptions:
         tolerance: 'Quad' norm tolerance (LMGC90 default 1e-4).
         max_iterations: largest number of sweeps.
         check_every: sweeps per convergence check (LMGC90 ``gs_it1``).
+        parallel_points: a frictionless problem of at least this many points whose bodies are
+            split in two sides (``ContactProblem.side``) is swept by two threads
+            (:func:`_solve_frictionless_halves`; the result does not depend on the number of
+            threads Numba has); smaller ones by one (the threads' start-up would cost more than
+            they save).
     """
 
     tolerance: float = 1e-4
     max_iterations: int = 2000
     check_every: int = 10
+    parallel_points: int = 4000
 
     def __post_init__(self):
         if not self.tolerance > 0:
@@ -117,51 +123,75 @@ def _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor):
     return max(quad_dv, quad_dvr, mean_dvor)
 
 
-@jit
-def _normal_point(k, body, data, offset, r, v):
-    """Numba: exact local frictionless solve of point k; updates ``r[k]`` and both bodies; returns the old impulse."""
-    i = body[k, 0]
-    j = body[k, 1]
-    u = (
-        data[k, N0] * (v[i, 0] - v[j, 0])
-        + data[k, N0 + 1] * (v[i, 1] - v[j, 1])
-        + data[k, N0 + 2] * (v[i, 2] - v[j, 2])
-        + data[k, AIN] * v[i, 3]
-        + data[k, AIN + 1] * v[i, 4]
-        + data[k, AIN + 2] * v[i, 5]
-        - data[k, AJN] * v[j, 3]
-        - data[k, AJN + 1] * v[j, 4]
-        - data[k, AJN + 2] * v[j, 5]
-    )
-    r_old = r[k]
-    r_new = r_old - (u + offset[k]) * data[k, INVW]
-    if r_new < 0.0:
-        r_new = 0.0
-    dr = r_new - r_old
-    r[k] = r_new
-    a = dr * data[k, IMI]
-    b = dr * data[k, IMJ]
-    v[i, 0] += a * data[k, N0]
-    v[i, 1] += a * data[k, N0 + 1]
-    v[i, 2] += a * data[k, N0 + 2]
-    v[i, 3] += dr * data[k, KIN]
-    v[i, 4] += dr * data[k, KIN + 1]
-    v[i, 5] += dr * data[k, KIN + 2]
-    v[j, 0] -= b * data[k, N0]
-    v[j, 1] -= b * data[k, N0 + 1]
-    v[j, 2] -= b * data[k, N0 + 2]
-    v[j, 3] -= dr * data[k, KJN]
-    v[j, 4] -= dr * data[k, KJN + 1]
-    v[j, 5] -= dr * data[k, KJN + 2]
-    return r_old
+@jit(inline="always")
+def _sweep(body, data, offset, r, v, start, stop, forward, check, sums):
+    """Numba: one Gauss–Seidel pass over points ``start..stop-1`` (forward or backward), in place.
+
+    When ``check``, the 'Quad' sums of the pass's active points are added to ``sums``
+    ``(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)``. Inlined into its callers: a compiled call per
+    point would cost a factor 2 in speed.
+    """
+    n = stop - start
+    n_act = 0
+    dvdv = wrwr = dvdvrr = wrr = dvor = 0.0
+    for step in range(n):
+        k = start + step if forward else stop - 1 - step
+        i = body[k, 0]
+        j = body[k, 1]
+        d = data[k]
+        u = (
+            d[N0] * (v[i, 0] - v[j, 0])
+            + d[N0 + 1] * (v[i, 1] - v[j, 1])
+            + d[N0 + 2] * (v[i, 2] - v[j, 2])
+            + d[AIN] * v[i, 3]
+            + d[AIN + 1] * v[i, 4]
+            + d[AIN + 2] * v[i, 5]
+            - d[AJN] * v[j, 3]
+            - d[AJN + 1] * v[j, 4]
+            - d[AJN + 2] * v[j, 5]
+        )
+        r_old = r[k]
+        r_new = r_old - (u + offset[k]) * d[INVW]
+        if r_new < 0.0:
+            r_new = 0.0
+        dr = r_new - r_old
+        r[k] = r_new
+        a = dr * d[IMI]
+        b = dr * d[IMJ]
+        v[i, 0] += a * d[N0]
+        v[i, 1] += a * d[N0 + 1]
+        v[i, 2] += a * d[N0 + 2]
+        v[i, 3] += dr * d[KIN]
+        v[i, 4] += dr * d[KIN + 1]
+        v[i, 5] += dr * d[KIN + 2]
+        v[j, 0] -= b * d[N0]
+        v[j, 1] -= b * d[N0 + 1]
+        v[j, 2] -= b * d[N0 + 2]
+        v[j, 3] -= dr * d[KJN]
+        v[j, 4] -= dr * d[KJN + 1]
+        v[j, 5] -= dr * d[KJN + 2]
+        if check and (r_old != 0.0 or r_new != 0.0):
+            w = d[WNN]
+            du = w * dr
+            rbar = 0.5 * (r_new + r_old)
+            n_act += 1
+            dvdv += du * du
+            wrwr += 0.5 * w * w * (r_new * r_new + r_old * r_old)
+            dvdvrr += du * du * rbar * rbar
+            wrr += 0.5 * w * (r_new * r_new + r_old * r_old)
+            dvor += rbar * du
+    if check:
+        sums[0] += n_act
+        sums[1] += dvdv
+        sums[2] += wrwr
+        sums[3] += dvdvrr
+        sums[4] += wrr
+        sums[5] += dvor
 
 
 @jit
 def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every):
     """Numba: NLGS sweeps on normal impulses ``r`` (P,) and velocities ``v`` (N + 1, 6), in place.
-
-    The local solve is written inline (the same arithmetic as :func:`_normal_point`, so results
-    are identical): calling it per point costs a factor 2 in speed (benchmarks/README.md).
 
     Returns:
         ``(sweeps, error, converged)``.
@@ -170,59 +200,41 @@ def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_eve
     if p == 0:
         return 0, 0.0, True
     error = np.inf
+    sums = np.zeros(6)
+    for it in range(max_iterations):
+        check = (it + 1) % check_every == 0 or it + 1 == max_iterations
+        sums[:] = 0.0
+        _sweep(body, data, offset, r, v, 0, p, it % 2 == 0, check, sums)
+        if check:
+            error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
+            if error < tol:
+                return it + 1, error, True
+    return max_iterations, error, False
+
+
+@jit(parallel=True)
+def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterations, check_every):
+    """Numba: NLGS sweeps with the points in three groups: two that share no body (swept by two
+    threads at once) and the rest (swept after them); same contract as :func:`_solve_frictionless`.
+
+    ``bounds`` ``(4,)``: the groups are the points ``bounds[g]..bounds[g+1]-1``, g = 0, 1, 2. The
+    wall (row N, zero inverse mass) may appear in both parallel groups: its velocity stays 0.
+    """
+    p = r.shape[0]
+    if p == 0:
+        return 0, 0.0, True
+    error = np.inf
+    sums = np.zeros((3, 6))
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         forward = it % 2 == 0
-        n_act = 0
-        dvdv = wrwr = dvdvrr = wrr = dvor = 0.0
-        for step in range(p):
-            k = step if forward else p - 1 - step
-            i = body[k, 0]
-            j = body[k, 1]
-            d = data[k]
-            u = (
-                d[N0] * (v[i, 0] - v[j, 0])
-                + d[N0 + 1] * (v[i, 1] - v[j, 1])
-                + d[N0 + 2] * (v[i, 2] - v[j, 2])
-                + d[AIN] * v[i, 3]
-                + d[AIN + 1] * v[i, 4]
-                + d[AIN + 2] * v[i, 5]
-                - d[AJN] * v[j, 3]
-                - d[AJN + 1] * v[j, 4]
-                - d[AJN + 2] * v[j, 5]
-            )
-            r_old = r[k]
-            r_new = r_old - (u + offset[k]) * d[INVW]
-            if r_new < 0.0:
-                r_new = 0.0
-            dr = r_new - r_old
-            r[k] = r_new
-            a = dr * d[IMI]
-            b = dr * d[IMJ]
-            v[i, 0] += a * d[N0]
-            v[i, 1] += a * d[N0 + 1]
-            v[i, 2] += a * d[N0 + 2]
-            v[i, 3] += dr * d[KIN]
-            v[i, 4] += dr * d[KIN + 1]
-            v[i, 5] += dr * d[KIN + 2]
-            v[j, 0] -= b * d[N0]
-            v[j, 1] -= b * d[N0 + 1]
-            v[j, 2] -= b * d[N0 + 2]
-            v[j, 3] -= dr * d[KJN]
-            v[j, 4] -= dr * d[KJN + 1]
-            v[j, 5] -= dr * d[KJN + 2]
-            if check and (r_old != 0.0 or r_new != 0.0):
-                w = d[WNN]
-                du = w * dr
-                rbar = 0.5 * (r_new + r_old)
-                n_act += 1
-                dvdv += du * du
-                wrwr += 0.5 * w * w * (r_new * r_new + r_old * r_old)
-                dvdvrr += du * du * rbar * rbar
-                wrr += 0.5 * w * (r_new * r_new + r_old * r_old)
-                dvor += rbar * du
+        sums[:, :] = 0.0
+        for g in prange(2):
+            _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, check, sums[g])
+        _sweep(body, data, offset, r, v, bounds[2], bounds[3], forward, check, sums[2])
         if check:
-            error = _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
+            error = _quad_error(sums[:, 0].sum(), sums[:, 1].sum(), sums[:, 2].sum(), sums[:, 3].sum(),
+                                sums[:, 4].sum(), sums[:, 5].sum())
             if error < tol:
                 return it + 1, error, True
     return max_iterations, error, False
@@ -334,6 +346,25 @@ def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_e
     return it, error, False
 
 
+def _halves(problem: ContactProblem) -> tuple[np.ndarray, np.ndarray] | None:
+    """Points ordered in the three groups of :func:`_solve_frictionless_halves`, and the group bounds.
+
+    The bodies are split by ``problem.side`` (0 or 1, e.g. the half of the cell their centre lies
+    in; the wall counts on either side): a point whose bodies are on one side goes to that side's
+    group, the others to group 2. ``None`` when the problem has no sides.
+    """
+    if problem.side is None:
+        return None
+    side = problem.side
+    si = side[problem.body[:, 0]]
+    sj = side[problem.body[:, 1]]
+    wall = problem.body[:, 1] == problem.n_bodies
+    group = np.where(wall | (si == sj), si, 2)
+    order = np.argsort(group, kind="stable")
+    bounds = np.searchsorted(group[order], np.arange(4)).astype(np.int64)
+    return order, bounds
+
+
 def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, SolverInfo]:
     """Solve the contact problem by NLGS from its warm-start impulses.
 
@@ -357,6 +388,14 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         impulse[:, 0] = r0[:, 0]
         v = problem.velocity(impulse)
         rn = np.array(r0[:, 0], dtype=np.float64)
-        it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every)
+        groups = _halves(problem) if problem.n_points >= options.parallel_points else None
+        if groups is None:
+            it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every)
+        else:
+            order, bounds = groups
+            r_sorted = rn[order]
+            it, err, ok = _solve_frictionless_halves(problem.body[order], problem.normal_data[order],
+                                                     problem.offset[order], r_sorted, v, bounds, tol, max_it, every)
+            rn[order] = r_sorted
         impulse[:, 0] = rn
     return impulse, SolverInfo(iterations=int(it), error=float(err), converged=bool(ok))

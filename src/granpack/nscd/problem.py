@@ -1,4 +1,4 @@
-"""The assembled contact problem of one Moreau–Jean step (PHYSICS.md §2.3–2.5).
+"""The assembled contact problem of one Moreau–Jean step (docs: Method > NSCD, contact kinematics and contact law).
 
 A :class:`ContactProblem` is what every solver of :mod:`granpack.nscd` takes: for each contact
 point α (frozen at the predicted configuration of the step)
@@ -8,7 +8,7 @@ point α (frozen at the predicted configuration of the step)
   ``a_i = x_α - x_i``, ``a_j = x_α - (x_j + shift)``,
 - the matrix-free operator: ``a × n`` and ``J_w^{-1}(a × n)`` for both bodies (and the same for
   ``t``, ``s`` when friction is on), the inverse masses,
-- the diagonal Delassus entry (PHYSICS §2.4)
+- the diagonal Delassus entry (docs: Method > NSCD, contact kinematics)
 
   .. math:: W_{nn,α} = \\sum_{b \\in \\{i, j\\}} \\frac{1}{m_b} + (a_b \\times n)^T J_{w,b}^{-1} (a_b \\times n)
 
@@ -235,6 +235,8 @@ class ContactProblem:
         gap: ``(P,)`` gaps at the predicted configuration, d.
         free_velocity: ``(N + 1, 6)`` world free velocities (row N: wall, zeros).
         initial_impulse: ``(P, 3)`` local impulses the solver starts from (warm start).
+        side: ``(N + 1,)`` 0 or 1 per body (two halves of the cell whose points a solver may
+            sweep in parallel), or ``None``.
     """
 
     time_step: float
@@ -248,6 +250,7 @@ class ContactProblem:
     gap: np.ndarray
     free_velocity: np.ndarray
     initial_impulse: np.ndarray
+    side: np.ndarray | None = None
 
     @property
     def n_points(self) -> int:
@@ -369,6 +372,7 @@ def assemble(
     restitution: float = 0.0,
     friction: float = 0.0,
     initial_impulse: np.ndarray | None = None,
+    side: np.ndarray | None = None,
 ) -> ContactProblem:
     """Build the contact problem of a step from the detected contacts.
 
@@ -384,6 +388,8 @@ def assemble(
         restitution: e_N in [0, 1].
         friction: Coulomb μ >= 0; 0 builds a frictionless problem (no tangential data).
         initial_impulse: ``(P, 3)`` local warm-start impulses, zeros if ``None``.
+        side: ``(N + 1,)`` 0 or 1 per body, the two halves a solver may sweep in parallel
+            (:mod:`granpack.nscd.nlgs`), or ``None``.
 
     Returns:
         The :class:`ContactProblem`.
@@ -435,4 +441,5 @@ def assemble(
         gap=np.array(contacts.gap, dtype=np.float64),
         free_velocity=free_velocity,
         initial_impulse=np.ascontiguousarray(initial_impulse, dtype=np.float64),
+        side=None if side is None else np.ascontiguousarray(side, dtype=np.int64),
     )

@@ -1,4 +1,4 @@
-"""Rigid-body kinematics of the Moreau–Jean step (PHYSICS.md §2.1–2.2).
+"""Rigid-body kinematics of the Moreau–Jean step (docs: Method > NSCD).
 
 Generalised velocities inside the solver are **world-frame** rows ``V[p] = (v_p, ω_p^w)`` of an
 ``(N + 1, 6)`` array; row ``N`` is the bottom wall (infinite mass, zero velocity), so a wall

@@ -1,9 +1,9 @@
-"""Warm start: the previous step's impulses carried over to the same contacts (PHYSICS.md §2.8).
+"""Warm start: the previous step's impulses carried over to the same contacts (docs: Method > NSCD, warm start).
 
 Identity of a contact point: the same pair of bodies (in either candidate/antagonist order, the
 wall being body -1) and a contact point within ``tolerance`` of the previous one **in the body
 frame of the new candidate i**. The periodic image is implied by the pair, because the cell is
-more than twice the interaction range (PHYSICS.md §2.10), so a pair whose shift changed only
+more than twice the interaction range (docs: Method, the cell), so a pair whose shift changed only
 because one body was wrapped across the boundary keeps its impulses.
 
 The previous points were computed at the previous predicted configuration ``TT'`` and the new
