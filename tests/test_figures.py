@@ -146,3 +146,32 @@ def test_run_figures(tmp_path, rng):
     paths = make_figures(tmp_path)
     assert {p.stem for p in paths} == {"solid_fraction_profile", "pair_correlation", "homogeneity", "packing"}
     _check_images(paths)
+
+
+def test_campaign_figures_say_what_they_skipped_and_why(campaign_dir, capsys):
+    from granpack.cli import main
+
+    assert campaign_figures(campaign_dir).skipped == {}
+    runs = pd.read_csv(campaign_dir / "runs.csv")
+    runs[runs["family"] == "spheres"].to_csv(campaign_dir / "runs.csv", index=False)
+    paths = campaign_figures(campaign_dir)
+    assert paths.skipped == {"coordination_vs_order": "every finished run is of spheres (no orientational order)"}
+    assert not any(p.stem == "coordination_vs_order" for p in paths)
+    runs.assign(status="failed").to_csv(campaign_dir / "runs.csv", index=False)
+    with pytest.raises(SystemExit) as info:
+        main(["figures", str(campaign_dir)])
+    out = capsys.readouterr().out
+    assert info.value.code == 0 and out.startswith("no figure written")
+    assert "skipped solid_fraction: no finished run in runs.csv (status 'done')" in out
+
+
+def test_run_figures_skip_an_empty_pair_correlation(tmp_path, rng):
+    analysis = _analysis(rng, 0.3, 1, 0.1)
+    analysis["pair_correlation"]["g"] = [None] * len(analysis["pair_correlation"]["r"])  # nan: no bulk region
+    analysis["bulk"]["valid"] = False
+    (tmp_path / "analysis.json").write_text(json.dumps(analysis))
+    paths = make_figures(tmp_path)
+    assert not (tmp_path / "figures" / "pair_correlation.png").exists()
+    assert paths.skipped["pair_correlation"].startswith("g(r) is empty (no bulk region")
+    assert paths.skipped["packing"] == f"no final.gsd in {tmp_path}"
+    assert {p.stem for p in paths} == {"solid_fraction_profile", "homogeneity"}
