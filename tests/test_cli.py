@@ -11,6 +11,7 @@ import signal
 import stat
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -560,3 +561,28 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("settling t = ")]
     assert len(lines) == 4 and lines[-1].startswith("settling t = 1.00/1 sqrt(d/g), step 200, ")
     assert "steps/s" in lines[-1]
+
+
+def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path):
+    """Ctrl-C in a terminal signals the whole process group (the command and its Dask workers):
+    exit 130, one line saying how to continue, the runs' checkpoints kept, no traceback."""
+    spec = tmp_path / "c.toml"
+    spec.write_text(_TINY_CAMPAIGN.replace("max_time = 0.5", "max_time = 500.0\nkinetic_tolerance = 1e-30"))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "granpack", "campaign", str(spec), "--out", str(out), "--workers", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        checkpoint = out / "mono" / "seed-1" / "checkpoint.gsd"
+        for _ in range(600):
+            if checkpoint.is_file() or proc.poll() is not None:
+                break
+            time.sleep(0.5)
+        assert checkpoint.is_file()
+        os.killpg(proc.pid, signal.SIGINT)
+        stdout, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130 and "Traceback" not in err and err.count("\n") == 1, err
+    assert err.startswith("interrupted; finished runs and the checkpoints of unfinished ones are kept")
+    assert checkpoint.is_file() and (out / "runs.csv").is_file()
