@@ -586,3 +586,20 @@ def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path):
     assert proc.returncode == 130 and "Traceback" not in err and err.count("\n") == 1, err
     assert err.startswith("interrupted; finished runs and the checkpoints of unfinished ones are kept")
     assert checkpoint.is_file() and (out / "runs.csv").is_file()
+
+
+def test_a_resolved_config_of_an_older_version_is_granpacks_own(tmp_path, capsys):
+    """A folder left with only config.toml (a run stopped during the pour) by a version whose
+    resolved config had fewer keys: the file starts with granpack's header, the run may replace it."""
+    from granpack.config import load_config
+
+    config = tmp_path / "tiny.toml"
+    config.write_text(TINY_RUN)
+    resolved = load_config(config).with_seed(8).to_toml()
+    older = "\n".join(line for line in resolved.splitlines() if not line.startswith("theta ="))
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "config.toml").write_text(older)
+    code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)
+    assert code == 0, err
+    assert (out / "config.toml").read_text() == load_config(config).to_toml()

@@ -257,12 +257,14 @@ class _Notes:
 
 
 def _is_resolved_config(path: Path, config_text: str) -> bool:
-    """Whether ``path`` is a resolved config as granpack writes it (this run's or another's)."""
+    """Whether ``path`` is a resolved config as granpack writes it (this run's or another's, of
+    this version or an older one: it starts with the header line of :meth:`RunConfig.to_toml`)."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError):
         return False
-    if text == config_text:
+    header = config_text.partition("\n")[0]
+    if text == config_text or (header.startswith("#") and text.startswith(header + "\n")):
         return True
     from granpack.config import load_config
 
