@@ -1,5 +1,6 @@
 """Checks of granpack.deposit: geometry (no overlap, inside the box), mechanical stability of every
-sphere when it was placed, bulk solid fraction, mixing of a bidisperse deposit, determinism, errors."""
+sphere when it was placed, bulk solid fraction, mixing of a bidisperse deposit, determinism, the
+loop both rules share, the closed-form arc geometry, errors."""
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ from scipy.optimize import nnls
 from scipy.spatial import cKDTree
 
 from granpack.deposit import deposit
+from granpack.deposit.geometry import down_perp, first_entry, plane_on_arc, sphere_on_arc
 
 TOL = 1e-9  # accepted overlap, in d (largest diameter = 1 below)
 CONTACT = 1e-7  # gap counted as a contact in the stability check
@@ -190,6 +192,57 @@ def test_deterministic(method):
     c = deposit(radii, 4.0, np.random.default_rng(100), method=method)
     np.testing.assert_array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("lateral", ["walls", "periodic"])
+def test_lmgc_drops_as_drop_where_it_has_no_position(lateral):
+    """One loop for both rules: the first sphere, which no three supports hold yet, is dropped by
+    the LMGC rule from the same release point as by the drop rule."""
+    radii = np.full(30, 0.5)
+    a = deposit(radii, 3.0, np.random.default_rng(5), lateral=lateral, method="drop")
+    b = deposit(radii, 3.0, np.random.default_rng(5), lateral=lateral, method="lmgc")
+    np.testing.assert_array_equal(a[0], b[0])
+    assert not np.array_equal(a, b)
+
+
+def test_gaps_along_an_arc_are_sinusoids():
+    """On ``p(t) = c_c + r (cos t f1 + sin t f2)`` the sphere and plane gaps are ``A + B cos t + C sin t``
+    and :func:`first_entry` finds where they turn negative (both do between t = 0 and pi/2 here)."""
+    g = np.random.default_rng(3)
+    cc = g.normal(size=3)
+    f1 = g.normal(size=3)
+    f1 /= np.linalg.norm(f1)
+    f2 = np.cross(f1, g.normal(size=3))
+    f2 /= np.linalg.norm(f2)
+    rc = 0.7
+    centre = cc + f2
+    normal = f1 - 0.5 * f2 + 0.3 * np.cross(f1, f2)
+    normal /= np.linalg.norm(normal)
+    pl = np.append(normal, normal @ cc)
+    for coeffs, gap in (
+        (sphere_on_arc(*centre, 0.5, cc, rc, f1, f2), lambda p: (p - centre) @ (p - centre) - 0.5**2),
+        (plane_on_arc(pl, cc, rc, f1, f2), lambda p: pl[:3] @ p - pl[3]),
+    ):
+        a, b, c = coeffs
+        for t in np.linspace(0.0, 2.0 * np.pi, 9):
+            p = cc + rc * (np.cos(t) * f1 + np.sin(t) * f2)
+            assert a + b * np.cos(t) + c * np.sin(t) == pytest.approx(gap(p), abs=1e-12)
+        t = first_entry(a, b, c, 0.0, np.pi)
+        assert 0.0 < t < 0.5 * np.pi
+        assert gap(cc + rc * (np.cos(t) * f1 + np.sin(t) * f2)) == pytest.approx(0.0, abs=1e-12)
+        assert -b * np.sin(t) + c * np.cos(t) < 0.0
+
+
+@pytest.mark.parametrize("v", [(0.3, -0.4, 0.5), (0.3, -0.4, -0.5), (0.0, 0.0, 1.0), (1.0, 0.0, 0.0)])
+def test_down_perp_is_the_descent_direction(v):
+    v = np.array(v) / np.linalg.norm(v)
+    out = np.empty(3)
+    s = down_perp(v, out)
+    assert s == pytest.approx(np.hypot(v[0], v[1]))
+    assert np.linalg.norm(out) == pytest.approx(1.0)
+    assert out @ v == pytest.approx(0.0, abs=1e-15)
+    assert np.linalg.det(np.array([v, [0.0, 0.0, 1.0], out])) == pytest.approx(0.0, abs=1e-15)
+    assert out[2] <= 0.0
 
 
 def test_progress_callback(rng):

@@ -1,38 +1,10 @@
-"""Geometric sequential deposition of spheres (the shells of PHYSICS §4.1) in a vertical box.
+"""The sequential loop shared by both rules: :func:`deposit` (Python: checks, grid, chunks of
+random numbers, progress) and :func:`deposit_chunk` (Numba: one sphere after the other).
 
-Box (owned here for the deposit only): square cross-section ``[0, L] x [0, L]``, floor ``z = 0``,
-open top, either lateral walls at ``x = 0, L`` and ``y = 0, L`` or periodic in x and y with
-period ``L`` (then centres are returned wrapped into ``[0, L)``, as in :mod:`granpack.box`).
-Lengths are in the caller's unit (d in granpack). Gravity is ``-e_z``.
-
-Two rules, both sequential (spheres are placed one by one in the given order; the caller
-shuffles the populations):
-
-``method="drop"`` (PHYSICS §4.2, Visscher & Bolsterli 1972): each sphere is released above the
-pile at a uniformly random ``(x, y)`` and follows the quasi-static steepest descent of its height
-among the fixed deposited spheres, the floor and the walls: it falls vertically to a first
-support, rolls on one sphere (on the sphere of radius ``R + R_j`` about ``x_j``, in the vertical
-plane through ``x_j``) until it touches a second support or reaches the equator of ``j`` (then it
-falls again), rolls on the circle of two supports until a third contact, a multiplier vanishes
-(it then rolls on the other support) or the lowest point of the circle, and stops where the
-supports ``k`` in contact hold it:
-
-.. math:: e_z = \\sum_k \\lambda_k n_k, \\qquad \\lambda_k \\ge 0,
-
-with ``n_k`` the unit normal of support ``k`` pointing to the centre. The supports kept at each
-step are the active set of the non-negative least squares solution of that equation, which
-drops the supports with negative multipliers. Touching the floor ends the drop. Contacts along
-the arcs are exact (closed form); a final position overlapping anything by more than
-``1e-9 d`` (d the largest diameter) is rejected and the sphere is dropped again at a new
-``(x, y)``. Bulk solid fraction of a monodisperse deposit in a periodic column: 0.581
-(Visscher & Bolsterli: 0.582; see tests/test_deposit.py).
-
-``method="lmgc"`` (PHYSICS §4.3, LMGC90 ``depositInBox3D``): each sphere goes to the lowest
-position touching three supports (sphere + plane + plane, sphere + sphere + plane or three
-spheres), the first support being one of the 100 most recent spheres with fewer than 8
-contacts, among the positions inside the box, free of overlap and held by their supports
-(this last filter is ours). Where no such position exists (the first spheres) the sphere is
-dropped as with ``"drop"``. This gives a denser, layered deposit with a nearly flat top.
+Each sphere first gets the rule's own placement (``"lmgc"``: :func:`~granpack.deposit.lmgc.lmgc_one`;
+``"drop"``: none); where that finds nothing, it is dropped (:func:`~granpack.deposit.drop.drop_one`)
+from random release points until it rests at an admissible place. The random numbers are drawn
+in fixed chunks of release points, so the centres depend on the generator only, not on progress.
 """
 
 from __future__ import annotations
@@ -42,9 +14,20 @@ from collections.abc import Callable
 
 import numpy as np
 
-from granpack import _deposit_kernels as _k
+from granpack._numba import jit
+from granpack.deposit.drop import drop_one
+from granpack.deposit.geometry import OVERLAP_TOL, inside_box
+from granpack.deposit.grid import gather_ball, grid_build, grid_insert
+from granpack.deposit.lmgc import count_contacts, lmgc_one
 
 __all__ = ["deposit"]
+
+MAX_ATTEMPTS = 1000  # attempts (random (x, y)) per sphere before the deposit fails
+
+STATUS_DONE = 0
+STATUS_NEED_UNIFORMS = 1
+STATUS_FAILED = 2
+STATUS_BUFFER = 3
 
 _CHUNK = 1024  # spheres per kernel call (fixed: the random stream must not depend on progress)
 _INITIAL_FRACTION = 0.45  # solid fraction assumed to size the grid height (it grows if needed)
@@ -68,8 +51,8 @@ def deposit(
             so the same seed gives identical centres.
         lateral: ``"walls"`` (planes ``x = 0, L``, ``y = 0, L``) or ``"periodic"`` (period ``L``
             in x and y, centres wrapped into ``[0, L)``).
-        method: ``"drop"`` (drop-and-roll, PHYSICS §4.2) or ``"lmgc"`` (lowest three-support
-            position, PHYSICS §4.3).
+        method: ``"drop"`` (drop-and-roll) or ``"lmgc"`` (lowest three-support position);
+            see :mod:`granpack.deposit`.
         progress: ``None``/``False`` (quiet, default), ``True`` (a rich progress bar) or a
             callable ``progress(done, total)`` called after each chunk of spheres.
 
@@ -114,23 +97,23 @@ def deposit(
     with report as tick:
         while done < n:
             stop = min(done + _CHUNK, n)
-            uni = rng.random((stop - done + _k.MAX_ATTEMPTS, 2))
-            nxt_i, _, top, status = _k.deposit_chunk(
+            uni = rng.random((stop - done + MAX_ATTEMPTS, 2))
+            nxt_i, _, top, status = deposit_chunk(
                 lmgc, pos, rad, ncont, done, stop, uni, head, nxt, nx, nx, nz, hxy, hz, lsize,
                 periodic, rmax, top, out_i, out_k, nbc, nbd,
             )
             done = nxt_i
-            if status == _k.STATUS_FAILED:
+            if status == STATUS_FAILED:
                 raise RuntimeError(
                     f"deposit: sphere {done} (radius {rad[done]:g}) found no resting place in "
-                    f"{_k.MAX_ATTEMPTS} release attempts"
+                    f"{MAX_ATTEMPTS} release attempts"
                 )
-            if status == _k.STATUS_BUFFER:
+            if status == STATUS_BUFFER:
                 raise RuntimeError("deposit: neighbour buffer overflow (internal error)")
             if top > 0.75 * nz * hz:
                 nz = 2 * int(top / hz) + 3
                 head = np.full(nx * nx * nz, -1, dtype=np.int64)
-                _k.grid_build(pos, done, head, nxt, nx, nx, nz, hxy, hz)
+                grid_build(pos, done, head, nxt, nx, nx, nz, hxy, hz)
             tick(done)
     return pos
 
@@ -182,3 +165,102 @@ class _progress_reporter:
         if self._bar is not None:
             self._bar.__exit__(*exc)
         return False
+
+
+@jit
+def admissible(radius, q, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax, out_i, out_k, lo, hi):
+    """Whether a sphere of radius ``R`` at ``q`` lies in the box and overlaps no deposited sphere
+    by more than ``OVERLAP_TOL d``: 1 (admissible), 0 (not) or -1 (buffer overflow)."""
+    tol = OVERLAP_TOL * 2.0 * rmax
+    if not inside_box(radius, q, lsize, periodic, tol):
+        return 0
+    m = gather_ball(q, radius + rmax, lo, hi, pos, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, out_i, out_k)
+    if m < 0:
+        return -1
+    for k in range(m):
+        j = out_i[k]
+        dx = q[0] - (pos[j, 0] + out_k[k, 0] * lsize)
+        dy = q[1] - (pos[j, 1] + out_k[k, 1] * lsize)
+        dz = q[2] - pos[j, 2]
+        if math.sqrt(dx * dx + dy * dy + dz * dz) < radius + rad[j] - tol:
+            return 0
+    return 1
+
+
+@jit
+def deposit_chunk(
+    lmgc, pos, rad, ncont, start, stop, uni, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+    top, out_i, out_k, nbc, nbd,
+):
+    """Place spheres ``start .. stop-1`` in order; each drop attempt consumes a row of ``uni``
+    (U(0,1)^2).
+
+    ``lmgc`` selects the LMGC90 rule (drop-and-roll is then used only where it finds no
+    three-support position: the first spheres). With lateral walls the release point is
+    ``(R + u_0 (L - 2R), R + u_1 (L - 2R))``, periodic ``(u_0 L, u_1 L)``; the release height is
+    ``top + R + 0.01 d`` with ``top`` the highest point of the deposit. Accepted centres (x, y
+    wrapped when periodic) go to ``pos`` and the grid.
+
+    Returns ``(next, used, top, status)``: the first sphere not placed, the rows of ``uni``
+    consumed, the updated ``top`` and ``STATUS_DONE``, ``STATUS_NEED_UNIFORMS`` (call again with
+    fresh ``uni`` from ``next``), ``STATUS_FAILED`` (sphere ``next`` could not be placed in
+    ``MAX_ATTEMPTS`` attempts) or ``STATUS_BUFFER`` (candidate buffers too small).
+    """
+    p = np.empty(3)
+    lo = np.empty(3)
+    hi = np.empty(3)
+    used = 0
+    dmax = 2.0 * rmax
+    for i in range(start, stop):
+        radius = rad[i]
+        placed = 0
+        if lmgc and i > 0:
+            placed = lmgc_one(
+                i, radius, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+                out_i, out_k, nbc, nbd, lo, hi, p,
+            )
+            if placed < 0:
+                return i, used, top, STATUS_BUFFER
+        attempts = 0
+        while placed == 0:
+            if attempts == MAX_ATTEMPTS:
+                return i, used, top, STATUS_FAILED
+            if used == uni.shape[0]:
+                return i, used, top, STATUS_NEED_UNIFORMS
+            if periodic:
+                x0 = uni[used, 0] * lsize
+                y0 = uni[used, 1] * lsize
+            else:
+                x0 = radius + uni[used, 0] * (lsize - 2.0 * radius)
+                y0 = radius + uni[used, 1] * (lsize - 2.0 * radius)
+            used += 1
+            attempts += 1
+            ok = drop_one(
+                radius, x0, y0, top + radius + 0.01 * dmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz,
+                lsize, periodic, rmax, out_i, out_k, lo, hi, p,
+            )
+            if ok < 0:
+                return i, used, top, STATUS_BUFFER
+            if ok == 1:
+                placed = admissible(
+                    radius, p, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+                    out_i, out_k, lo, hi,
+                )
+                if placed < 0:
+                    return i, used, top, STATUS_BUFFER
+        if periodic:
+            p[0] -= lsize * math.floor(p[0] / lsize)
+            p[1] -= lsize * math.floor(p[1] / lsize)
+            if p[0] >= lsize:
+                p[0] = 0.0
+            if p[1] >= lsize:
+                p[1] = 0.0
+        for a in range(3):
+            pos[i, a] = p[a]
+        grid_insert(i, pos, head, nxt, nx, ny, nz, hxy, hz)
+        top = max(top, p[2] + radius)
+        if lmgc and count_contacts(
+            i, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax, out_i, out_k, lo, hi
+        ) < 0:
+            return i, used, top, STATUS_BUFFER
+    return stop, used, top, STATUS_DONE
