@@ -137,28 +137,58 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
         return {"status": "failed", "action": action, "error": message, "wall_time": time.perf_counter() - start}
 
 
+class _QuietShutdown:
+    """Ctrl-C: while the interrupted cluster closes, its races (a nanny's CancelledError ...) are
+    logged as errors with tracebacks; the ``distributed`` loggers are silenced from the interrupt
+    until the cluster is closed (:meth:`closing`, entered first, restores them)."""
+
+    def __init__(self):
+        self._saved: dict[logging.Logger, int] = {}
+
+    @contextlib.contextmanager
+    def closing(self) -> Iterator[None]:
+        try:
+            yield
+        finally:
+            for logger, level in self._saved.items():
+                logger.setLevel(level)
+            self._saved.clear()
+
+    @contextlib.contextmanager
+    def interrupted(self) -> Iterator[None]:
+        try:
+            yield
+        except KeyboardInterrupt:
+            names = ["distributed", *(n for n in logging.root.manager.loggerDict if n.startswith("distributed."))]
+            for logger in map(logging.getLogger, names):
+                self._saved.setdefault(logger, logger.level)
+                logger.setLevel(logging.CRITICAL + 1)
+            raise
+
+
 @contextlib.contextmanager
 def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterator[Client]:
     """A Dask client on the given scheduler, or on a new local cluster of processes."""
     from distributed import Client, LocalCluster
 
+    quiet = _QuietShutdown()
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="20s")
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(f"--scheduler: cannot connect to {scheduler!r} ({exc})") from None
-        with client:
+        with quiet.closing(), client, quiet.interrupted():
             yield client
         return
     n_workers = workers if workers is not None else max(1, min(os.cpu_count() or 1, n_tasks))
-    with LocalCluster(
+    with quiet.closing(), LocalCluster(
         n_workers=n_workers,
         threads_per_worker=1,
         processes=True,
         dashboard_address=None,
         silence_logs=logging.ERROR,
         env=_WORKER_ENV,
-    ) as cluster, Client(cluster) as client:
+    ) as cluster, Client(cluster) as client, quiet.interrupted():
         yield client
 
 
