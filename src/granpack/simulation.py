@@ -100,7 +100,7 @@ TIMELINE_FILE = "timeline.csv"
 TIMELINE_COLUMNS = (
     "time", "step", "kinetic_energy_total", "kinetic_criterion", "max_net_force", "max_net_torque",
     "wall_force_over_weight", "nlgs_tolerance", "mean_sweeps", "max_sweeps", "unconverged_steps",
-    "corrected_steps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
+    "corrected_steps", "correction_sweeps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
     "wall_seconds", "cpu_seconds",
 )
 
@@ -127,6 +127,7 @@ class _Counters:
     point_updates: int = 0
     max_overlap: float = 0.0
     correction_steps: int = 0
+    correction_iterations: int = 0  # NLGS sweeps of the position corrections
     correction_energy: float = 0.0
     end_game: bool = False  # the end game's damping has started (once set, for good)
     damped_energy: float = 0.0
@@ -480,6 +481,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.point_updates += info.iterations * info.n_points
                 counters.max_overlap = max(counters.max_overlap, info.max_overlap)
                 counters.correction_steps += 1 if info.correction_iterations else 0
+                counters.correction_iterations += info.correction_iterations
                 counters.correction_energy += info.correction_energy
                 counters.damped_energy += info.damped_energy
                 counters.detection_seconds += info.detection_seconds
@@ -530,15 +532,15 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
                   tolerance: float) -> None:
     """Append the row of this check to ``c.timeline`` (interval sums from the previous row's totals)."""
-    totals = (c.solves, c.iterations_total, c.unconverged_steps, c.correction_steps, c.correction_energy,
-              c.damped_energy)
-    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0, 0, 0, 0, 0.0, 0.0)
+    totals = (c.solves, c.iterations_total, c.unconverged_steps, c.correction_steps, c.correction_iterations,
+              c.correction_energy, c.damped_energy)
+    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0,) * len(totals)
     d = [a - b for a, b in zip(totals, previous)]
     gaps = contacts.gap
     c.timeline.append([
         state.time, c.step, kinetic_energy(state), report.kinetic_energy, report.max_net_force,
         report.max_net_torque, report.wall_force_over_weight, tolerance, d[1] / max(d[0], 1), c.interval_max_sweeps,
-        d[2], d[3], d[4], d[5], contacts.n_manifolds, contacts.n_points,
+        d[2], d[3], d[4] / max(d[0], 1), d[5], d[6], contacts.n_manifolds, contacts.n_points,
         float(max(0.0, -gaps.min())) if len(gaps) else 0.0, c.wall_seconds, c.cpu_seconds, *totals,
     ])
     c.interval_max_sweeps = 0

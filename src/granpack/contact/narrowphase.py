@@ -674,10 +674,22 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
         o0, o1, o2 = _AXIS_EDGE, first_face, second_face
     else:
         o0, o1, o2 = first_face, second_face, _AXIS_EDGE
+    # an axis is a candidate within eps_f of the best separation, or within 2 eps_f if it is the
+    # previous normal: one band would let an axis at its edge flicker in and out from step to step
+    # (the manifold's normal and type flipping at every step, its force with them)
+    band_a = band_b = band_e = eps_f
     if hx != 0.0 or hy != 0.0 or hz != 0.0:
-        ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2]) if sfa >= sigma - eps_f else 0.0
-        cb = abs(hx * ax[kfb, 0] + hy * ax[kfb, 1] + hz * ax[kfb, 2]) if sfb >= sigma - eps_f else 0.0
-        ce = abs(hx * ex + hy * ey + hz * ez) if se >= sigma - eps_f else 0.0
+        ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2])
+        cb = abs(hx * ax[kfb, 0] + hy * ax[kfb, 1] + hz * ax[kfb, 2])
+        ce = abs(hx * ex + hy * ey + hz * ez)
+        hint = max(ca, cb, ce)
+        if hint > _HINT_COS:
+            band_a = 2.0 * eps_f if ca == hint else eps_f
+            band_b = 2.0 * eps_f if cb == hint and ca != hint else eps_f
+            band_e = 2.0 * eps_f if ce == hint and ca != hint and cb != hint else eps_f
+        ca = ca if sfa >= sigma - band_a else 0.0
+        cb = cb if sfb >= sigma - band_b else 0.0
+        ce = ce if se >= sigma - band_e else 0.0
         if max(ca, cb, ce) > _HINT_COS:
             if ca >= cb and ca >= ce:
                 o0, o1, o2 = _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE
@@ -695,12 +707,12 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
     for c in range(3):
         which = o0 if c == 0 else (o1 if c == 1 else o2)
         if which == _AXIS_FACE_A:
-            sk = sfa
+            sk, band = sfa, band_a
         elif which == _AXIS_FACE_B:
-            sk = sfb
+            sk, band = sfb, band_b
         else:
-            sk = se
-        if sk < sigma - eps_f or sk == -math.inf:
+            sk, band = se, band_e
+        if sk < sigma - band or sk == -math.inf:
             continue
         if which == _AXIS_FACE_A or which == _AXIS_FACE_B:
             if which == _AXIS_FACE_A:
