@@ -958,3 +958,41 @@ def test_merge_points_drops_only_duplicates_and_keeps_the_deeper_gap():
     expected = gp[:8].copy()
     expected[5] = -0.02  # the deeper gap of the merged pair
     np.testing.assert_array_equal(kept_gaps[:8], expected)
+
+
+# ---------------------------------------------------------------------------------------------
+# temporal axis hysteresis: two bands
+
+
+def _flicker_pair() -> ParticleState:
+    """Two isometric pinacoids of a settled pile (interpenetrating by 2.35e-5 d) whose best axis is
+    an edge-edge one and whose next face axis (0.67 degrees from it) separates them 1.0e-3 d less."""
+    return make_state(
+        [Pinacoid.from_size(1.0)], [0, 0],
+        [[0.24198513454644313, 1.2159749204581183, 4.536182570625141],
+         [0.4826593550127663, 1.2593438018564944, 5.125825527351792]],
+        [[0.03904431644091875, -0.41220659985244157, -0.6785846949032701, 0.6066993260543366],
+         [-0.7348805650007875, 0.032860228270470075, 0.04133338216626628, 0.6761377907651912]],
+        box=3.0,
+    )
+
+
+def test_previous_axis_stays_the_normal_within_twice_the_band():
+    """An axis that was the previous normal stays a candidate within 2 eps_f of the best separation
+    (others within eps_f): with one band, an axis at its edge flickered in and out from step to
+    step in a pile at rest, the manifold's normal and force turning with it."""
+    state = _flicker_pair()
+    detector = Detector(eps_f=7e-4)  # the face axis is 1.0e-3 d worse: outside eps_f, inside 2 eps_f
+    fresh = detector.detect(state, 0.02)
+    edge = pair_manifold(fresh)
+    assert edge["ctype"] == SIMPLE and len(edge["gaps"]) == 1  # the edge-edge axis, one point
+    face_normal = np.array([-0.6930802, -0.1327286, -0.7085358])
+    assert 0.999 < abs(edge["normal"] @ face_normal) < 0.99995
+    previous = ContactSet(**{**fresh.__dict__, "normal": np.array(fresh.normal, float)})
+    previous.normal[0] = face_normal / np.linalg.norm(face_normal)
+    kept = pair_manifold(Detector(eps_f=7e-4).detect(state, 0.02, previous=previous))
+    assert abs(kept["normal"] @ face_normal) > 1 - 1e-9
+    assert kept["gaps"].min() == pytest.approx(edge["gaps"].min(), abs=1e-12)  # the exact depth either way
+    kept_set = Detector(eps_f=7e-4).detect(state, 0.02, previous=previous)
+    again = pair_manifold(Detector(eps_f=7e-4).detect(state, 0.02, previous=kept_set))
+    assert np.allclose(again["normal"], kept["normal"], atol=1e-12)  # a fixed point: no flicker

@@ -232,6 +232,20 @@ def test_block_sliding_on_the_wall_decelerates_at_mu_g(mu):
     assert abs(state.position[0, 2] - z0) < 1e-9
 
 
+def test_damping_decays_a_sliding_block_exponentially_and_reports_the_energy_it_removes():
+    """End-game damping: on the frictionless floor nothing else acts along x, so after n steps the
+    velocity is exactly v0 exp(-γ n h), and the kinetic energy removed is reported step by step."""
+    gamma, v0, n = 2.0, 0.5, 200
+    z0 = half_height(PIN, ON_FACE)
+    state = make_state(PIN, [[1.0, 3.0, z0]], ON_FACE, box=12.0, velocity=[[v0, 0.0, 0.0]])
+    removed = []
+    run(state, StepParameters(time_step=H, damping=gamma), n, each=lambda k, s, c, i: removed.append(i.damped_energy))
+    assert state.velocity[0, 0] == pytest.approx(v0 * np.exp(-gamma * n * H), rel=1e-12)
+    mass = state.mass[0]
+    assert sum(removed) == pytest.approx(0.5 * mass * v0**2 * (1 - np.exp(-2 * gamma * n * H)), rel=1e-9)
+    assert abs(state.position[0, 2] - z0) < 1e-9  # still resting on its face
+
+
 # --- many grains ---------------------------------------------------------------------------
 
 

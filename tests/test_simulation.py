@@ -46,9 +46,32 @@ def test_small_run_reaches_certified_equilibrium(settled):
     assert summary["nlgs"]["mean_iterations"] > 0 and summary["steps"] == round(summary["simulated_time"] / 5e-3)
 
 
+def test_timeline_records_every_check_and_the_end_game(settled):
+    """timeline.csv: one row per equilibrium check, its columns; the end game started once the
+    kinetic criterion fell below solver.damping_below, and from then on the fine NLGS tolerance and
+    the damping (none on the checked steps, so the last checks judge free dynamics)."""
+    import csv
+
+    config, summary, out = settled
+    with (out / simulation.TIMELINE_FILE).open(newline="") as f:
+        reader = csv.DictReader(f)
+        assert tuple(reader.fieldnames) == simulation.TIMELINE_COLUMNS
+        rows = [{k: float(v) for k, v in row.items()} for row in reader]
+    check_steps = round(config.equilibrium.check_interval / config.solver.time_step)
+    assert [int(r["step"]) for r in rows] == list(range(check_steps, summary["steps"] + 1, check_steps))
+    assert rows[-1]["time"] == pytest.approx(summary["simulated_time"])
+    start = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.damping_below)
+    assert all(r["damped_energy"] == 0 for r in rows[: start + 1])
+    assert sum(r["damped_energy"] for r in rows[start + 1:]) > 0
+    assert summary["end_game"]["started"] and summary["end_game"]["kinetic_energy_removed"] == pytest.approx(
+        sum(r["damped_energy"] for r in rows), rel=1e-6)
+    assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[start + 1:])
+    assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
+
+
 def test_run_folder_holds_resolved_config_final_packing_and_summary(settled):
     config, summary, out = settled
-    assert {p.name for p in out.iterdir()} == {"config.toml", "final.gsd", "summary.json"}  # checkpoint removed
+    assert {p.name for p in out.iterdir()} == {"config.toml", "final.gsd", "summary.json", "timeline.csv"}  # checkpoint removed
     assert load_config(out / "config.toml") == config
     assert read_json(out / "summary.json") == to_jsonable(summary)
     packing = read_packing(out / "final.gsd")
