@@ -33,7 +33,10 @@ neighbour, even in a pile at rest (measurements: docs/design-notes.md).
 
 Temporal coherence: a pair keeps the code of the axis that last separated it (tried first), and
 a touching pair's previous normal orders the manifold candidates (a previous edge-edge normal
-that is also nearly a face axis selects the face: the faces have met).
+that is also nearly a face axis selects the face: the faces have met), and the axis it matches
+stays a candidate within ``2 eps_f`` of the best separation (the others within ``eps_f``): with
+one band, an axis at its edge flickered in and out from step to step, the normal and the force of
+the manifold turning with it, and a pile at rest never balanced its forces.
 
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
