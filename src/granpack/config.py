@@ -190,12 +190,18 @@ class SolverConfig(_Model):
         description="The same while grains move fast (alert distance raised above alert_distance), d; "
         "the smaller of the two applies then.",
     )
+    pour_correction_interval: int = Field(
+        default=1,
+        ge=1,
+        description="While grains move fast (alert distance raised), positions are corrected every this "
+        "many steps only (1: every step).",
+    )
     end_game: Literal["damping", "none"] = Field(
         default="damping",
         description="How a collapsed pile is brought to rest: 'damping' scales every grain's velocity by "
         "exp(-damping_rate h) after each step once the kinetic criterion is below `damping_below` (not on "
-        "the steps whose equilibrium is checked, nor while checks pass, so the criteria judge undamped "
-        "dynamics); 'none': undamped NSCD throughout.",
+        "the steps whose equilibrium is checked, so the criteria judge undamped dynamics); 'none': "
+        "undamped NSCD throughout.",
     )
     damping_rate: _Number = Field(default=1.0, gt=0, description="Rate of the end game's viscous damping, 1/sqrt(d/g).")
     damping_below: _Number = Field(

@@ -20,11 +20,11 @@ the force criteria need converged forces.
 
 End game. Once the kinetic criterion falls below ``solver.damping_below`` (the collapse is over),
 with ``solver.end_game = "damping"`` every step but the checked ones scales the velocities by
-``exp(-damping_rate h)`` (:mod:`granpack.nscd.integrator`), until a check passes; a failed check
-turns it back on. Frictionless grains swinging on closed contacts dissipate nothing, and an
+``exp(-damping_rate h)`` (:mod:`granpack.nscd.integrator`). Frictionless grains swinging on closed contacts dissipate nothing, and an
 undamped pile keeps a steady level of small motions long after it has collapsed; the damping
 vanishes at rest, so it changes how fast the pile gets to its static equilibrium, not which
-forces hold it there, and the criteria are only ever met on undamped steps.
+forces hold it there. The criteria are evaluated on undamped steps: a grain creeping at the
+terminal speed ``v`` of the drag shows its unbalanced force ``γ m v`` there, and its kinetic energy.
 
 Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
 above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
@@ -461,10 +461,15 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         while counters.step < n_steps_max:
             alert, substeps = step_alert(state, params.alert, h, ceiling)
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
-            slop = params.overlap_slop if alert == params.alert else min(params.overlap_slop, pour_slop)
+            if alert == params.alert:
+                slop = params.overlap_slop
+            elif counters.step % config.solver.pour_correction_interval == 0:
+                slop = min(params.overlap_slop, pour_slop)
+            else:
+                slop = 0.0  # no correction on this step of the pour
             step_h = h / substeps
             checking = (counters.step + 1) % check_every == 0
-            damping = config.solver.damping_rate if counters.end_game and counters.passes == 0 and not checking else 0.0
+            damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
             step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
                                   damping=damping)
             for _ in range(substeps):
