@@ -194,3 +194,42 @@ def test_solver_residual_is_small_and_independent_of_warm_start(rng):
     v = problem.velocity(r)
     assert np.abs(v[:-1]).max() < 1e-8
     assert kinetic_energy(state) == 0.0
+
+
+def test_two_thread_sweeps_solve_the_same_problem():
+    """The two-slab NLGS (points split by the halves of the cell their bodies lie in, the two
+    halves swept at once, the pairs across them after) converges to the same solution as the
+    sequential sweeps: a 4 x 4 x 3 lattice of spheres with lateral contacts across the periodic
+    boundary and the mid-plane, every point in one of the three groups."""
+    from granpack.nscd.integrator import _sides
+    from granpack.nscd.nlgs import _halves
+
+    pos = [[0.5 + i, 0.5 + j, 0.5 + k] for i in range(4) for j in range(4) for k in range(3)]
+    state = sphere_state(pos, box=4.0)
+    params = StepParameters(time_step=H)
+    pr = predict(state, params)
+    idx = {tuple(np.round(p, 6)): n for n, p in enumerate(pos)}
+    pairs = []
+    for n, p in enumerate(pos):
+        for axis in range(3):
+            q = list(p)
+            q[axis] += 1.0
+            shift = [0.0, 0.0, 0.0]
+            if axis < 2 and q[axis] > 4.0:
+                q[axis] -= 4.0
+                shift[axis] = 4.0
+            if tuple(np.round(q, 6)) in idx:
+                pairs.append((idx[tuple(np.round(q, 6))], n, tuple(shift)))
+    walls = [n for n, p in enumerate(pos) if p[2] == 0.5]
+    contacts = sphere_contacts(pr.state, pairs, walls)
+    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
+                       side=_sides(pr.x_tt, state.box.lx))
+    order, bounds = _halves(problem)
+    assert np.all(np.diff(bounds) > 0)  # both halves and the pairs across them
+    options = NLGSOptions(tolerance=1e-12, max_iterations=200000)
+    r_seq, info_seq = solve(problem, options)
+    r_par, info_par = solve(problem, NLGSOptions(tolerance=1e-12, max_iterations=200000, parallel_points=1))
+    assert info_seq.converged and info_par.converged
+    assert problem.residual(r_par) < 1e-10
+    v_seq, v_par = problem.velocity(r_seq), problem.velocity(r_par)
+    np.testing.assert_allclose(v_par, v_seq, atol=1e-10)  # V^{n+1} is unique (impulses need not be)

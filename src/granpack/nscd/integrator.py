@@ -95,6 +95,9 @@ class StepParameters:
         damping: rate γ of a viscous damping of every grain's velocity after the step,
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
             :mod:`granpack.simulation`).
+        parallel_points: frictionless problems of at least this many points are swept by two
+            threads, the two halves ``x < L_x/2`` and ``x >= L_x/2`` of the cell at once
+            (:func:`granpack.nscd.nlgs.solve`); the default never does.
     """
 
     time_step: float = 5e-3
@@ -110,6 +113,7 @@ class StepParameters:
     correction_sweeps: int = 200
     correction_step: float = 1e-3
     damping: float = 0.0
+    parallel_points: int = 2**62
 
     def __post_init__(self):
         if not self.time_step > 0:
@@ -129,12 +133,14 @@ class StepParameters:
 
     @property
     def solver_options(self) -> NLGSOptions:
-        return NLGSOptions(tolerance=self.tolerance, max_iterations=self.max_iterations, check_every=self.check_every)
+        return NLGSOptions(tolerance=self.tolerance, max_iterations=self.max_iterations, check_every=self.check_every,
+                           parallel_points=self.parallel_points)
 
     @property
     def correction_options(self) -> NLGSOptions:
         sweeps = min(self.correction_sweeps, self.max_iterations)
-        return NLGSOptions(tolerance=self.tolerance, max_iterations=sweeps, check_every=self.check_every)
+        return NLGSOptions(tolerance=self.tolerance, max_iterations=sweeps, check_every=self.check_every,
+                           parallel_points=self.parallel_points)
 
 
 @dataclass(frozen=True)
