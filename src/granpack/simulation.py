@@ -228,7 +228,7 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
 
 #: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
 #: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
-RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, "timeline.csv", "analysis.json", "packing.png")
+RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, "analysis.json", "packing.png")
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
 RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
