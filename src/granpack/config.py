@@ -196,11 +196,11 @@ class SolverConfig(_Model):
         description="While grains move fast (alert distance raised), positions are corrected every this "
         "many steps only (1: every step).",
     )
-    parallel_points: Optional[int] = Field(
-        default=None,
-        ge=1,
+    parallel_points: int = Field(
+        default=0,
+        ge=0,
         description="Contact problems of at least this many points are swept by two threads (the two "
-        "halves of the cell at once); unset: one thread. Only worth it on an otherwise idle machine with "
+        "halves of the cell at once); 0: one thread. Only worth it on an otherwise idle machine with "
         "2 cores or more: each sweep ends on a barrier, which waits for a descheduled thread.",
     )
     end_game: Literal["damping", "none"] = Field(

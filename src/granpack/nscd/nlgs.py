@@ -87,7 +87,7 @@ class NLGSOptions:
     tolerance: float = 1e-4
     max_iterations: int = 2000
     check_every: int = 10
-    parallel_points: int = 4000
+    parallel_points: int = 2**62
 
     def __post_init__(self):
         if not self.tolerance > 0:
