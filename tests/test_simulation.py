@@ -48,8 +48,9 @@ def test_small_run_reaches_certified_equilibrium(settled):
 
 def test_timeline_records_every_check_and_the_end_game(settled):
     """timeline.csv: one row per equilibrium check, its columns; the end game started once the
-    kinetic criterion fell below solver.damping_below, and from then on the fine NLGS tolerance and
-    the damping (none on the checked steps, so the last checks judge free dynamics)."""
+    kinetic criterion fell below solver.damping_below, and from then on the damping (none on the
+    checked steps, so the last checks judge free dynamics); the fine NLGS tolerance from the first
+    check below solver.tolerance_below."""
     import csv
 
     config, summary, out = settled
@@ -65,7 +66,9 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     assert sum(r["damped_energy"] for r in rows[start + 1:]) > 0
     assert summary["end_game"]["started"] and summary["end_game"]["kinetic_energy_removed"] == pytest.approx(
         sum(r["damped_energy"] for r in rows), rel=1e-6)
-    assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[start + 1:])
+    fine = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.tolerance_below)
+    assert all(r["nlgs_tolerance"] == config.solver.settling_tolerance for r in rows[: fine + 1])
+    assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[fine + 1:])
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
 
 

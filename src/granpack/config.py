@@ -165,8 +165,15 @@ class SolverConfig(_Model):
     settling_tolerance: _Number = Field(
         default=1e-3,
         gt=0,
-        description="NLGS tolerance while the pile is far from rest (kinetic criterion above 100 x its bound); "
-        "the run then switches to `tolerance` for good.",
+        description="NLGS tolerance while the pile is far from rest (kinetic criterion above "
+        "`tolerance_below`); the run then switches to `tolerance` for good.",
+    )
+    tolerance_below: _Number = Field(
+        default=1e-5,
+        gt=0,
+        description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the NLGS "
+        "is solved to `tolerance` instead of `settling_tolerance` (for good); the equilibrium window only "
+        "counts checks made with it.",
     )
     max_iterations: int = Field(default=2000, ge=1, description="Most NLGS sweeps per time step.")
     theta: _Number = Field(default=0.5, ge=0.5, le=1, description="Theta of the Moreau-Jean scheme, in [0.5, 1].")
