@@ -222,8 +222,7 @@ class SolverConfig(_Model):
         default=1e-3,
         gt=0,
         description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the end "
-        "game starts (for good): the NLGS switches to `tolerance` and, with end_game = 'damping', the "
-        "damping acts.",
+        "game starts (for good): with end_game = 'damping', the damping acts from then on.",
     )
 
 

@@ -75,7 +75,7 @@ from granpack.contact import ContactSet, Detector
 from granpack.deposit import deposit
 from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
 from granpack.errors import InputError, RunInterrupted
-from granpack.io.atomic import write_text_atomic
+from granpack.io.atomic import output_folder, write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.mixture import Mixture
@@ -316,12 +316,7 @@ def _claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: b
     """
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other: continue the run in the folder, or replace it")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"--out {out_dir}: is a file, not a folder")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out {out_dir}: cannot create the folder ({exc.strerror})") from None
+    output_folder(out_dir)
     present = [name for name in RUN_FILES if (out_dir / name).is_file()]
     config_path = out_dir / CONFIG_FILE
     if config_path.exists() and not present and not _is_resolved_config(config_path, config_text):

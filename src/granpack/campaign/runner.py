@@ -48,6 +48,7 @@ from granpack.campaign.store import (
 )
 from granpack.config import load_config_dict
 from granpack.errors import InputError
+from granpack.io.atomic import output_folder
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -299,12 +300,7 @@ def run_campaign(
     if workers is not None and scheduler is not None:
         raise InputError("--workers applies to the local cluster only; leave it out with --scheduler")
     out_dir = Path(out_dir).resolve()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"--out {out_dir}: is a file, not a folder")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"--out {out_dir}: cannot create the folder ({exc.strerror})") from None
+    output_folder(out_dir)
     if spec.source_text:
         (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
     todo = [run for run in spec.runs if not is_finished(out_dir, run)]

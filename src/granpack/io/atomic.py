@@ -17,9 +17,25 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_text_atomic"]
+__all__ = ["atomic_path", "write_text_atomic", "output_folder"]
 
 _ATTEMPTS = 100
+
+
+def output_folder(path: Path, option: str = "--out") -> None:
+    """Create the output folder ``path`` (and its parents) if needed.
+
+    Raises:
+        InputError: ``path`` is a file, or cannot be created (one line naming ``option``).
+    """
+    from granpack.errors import InputError
+
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{option} {path}: is a file, not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{option} {path}: cannot create the folder ({exc.strerror})") from None
 
 
 def _create_temporary(path: Path) -> Path:
