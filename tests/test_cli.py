@@ -381,6 +381,15 @@ def test_run_json_prints_the_summary(finished, tmp_path, capsys):
 # ----------------------------------------------------------------------------- Ctrl-C
 
 
+@pytest.fixture
+def default_sigint():
+    """Python's default SIGINT handler for the test: a library used by an earlier test (e.g. a Dask
+    cluster) may have left its own, and ``run`` only takes over the default one."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
 def _interrupting_advance(monkeypatch, at_calls, times=1):
     """Make simulation.advance send SIGINT to this process (``times`` in a row) at the given calls,
     as Ctrl-C would."""
@@ -400,7 +409,7 @@ def _interrupting_advance(monkeypatch, at_calls, times=1):
     return advance
 
 
-def test_ctrl_c_while_settling_writes_the_checkpoint_and_resumes_bit_for_bit(finished, tmp_path, capsys, monkeypatch):
+def test_ctrl_c_while_settling_writes_the_checkpoint_and_resumes_bit_for_bit(finished, tmp_path, capsys, monkeypatch, default_sigint):
     from granpack.io.gsd import read_packing
 
     config, whole, _ = finished
@@ -426,7 +435,7 @@ def test_ctrl_c_while_settling_writes_the_checkpoint_and_resumes_bit_for_bit(fin
         np.testing.assert_array_equal(getattr(a.state, name), getattr(b.state, name))
 
 
-def test_a_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(finished, tmp_path, capsys, monkeypatch):
+def test_a_second_ctrl_c_stops_at_once_keeping_the_last_checkpoint(finished, tmp_path, capsys, monkeypatch, default_sigint):
     config, _, _ = finished
     out = tmp_path / "run"
     _interrupting_advance(monkeypatch, {150}, times=2)
@@ -458,7 +467,9 @@ def test_ctrl_c_inside_a_numba_kernel_is_an_interruption(finished, tmp_path, cap
 def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path):
     """A real Ctrl-C (SIGINT to the process) while settling: exit 130, one line naming --resume."""
     config = tmp_path / "long.toml"
-    config.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 500.0\nkinetic_tolerance = 1e-30"))
+    # never at rest: undamped (the end game's damping stops these 20 spheres exactly) and an unreachable bound
+    config.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 500.0\nkinetic_tolerance = 1e-30")
+                      + '\n[solver]\nend_game = "none"\n')
     out = tmp_path / "run"
     proc = subprocess.Popen([sys.executable, "-m", "granpack", "run", str(config), "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -567,7 +578,8 @@ def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path):
     """Ctrl-C in a terminal signals the whole process group (the command and its Dask workers):
     exit 130, one line saying how to continue, the runs' checkpoints kept, no traceback."""
     spec = tmp_path / "c.toml"
-    spec.write_text(_TINY_CAMPAIGN.replace("max_time = 0.5", "max_time = 500.0\nkinetic_tolerance = 1e-30"))
+    spec.write_text(_TINY_CAMPAIGN.replace("max_time = 0.5", "max_time = 500.0\nkinetic_tolerance = 1e-30")
+                    .replace("[[mixtures]]", '[base.solver]\nend_game = "none"\n[[mixtures]]'))
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "granpack", "campaign", str(spec), "--out", str(out), "--workers", "1"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
