@@ -185,11 +185,12 @@ class SolverConfig(_Model):
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
     overlap_slop: _Number = Field(
-        default=1e-4,
+        default=5e-4,
         ge=0,
         description="Overlap above which positions are corrected after a step (to 0.1 of it), d; "
         "0: none (pure velocity-level law, as LMGC90). The default keeps every overlap of a pile at "
-        "rest below about 1e-4 d; 5e-3 leaves overlaps of up to about 5e-3 d.",
+        "rest below about 5e-4 d; 1e-4 corrects a tall pile at rest every few hundred steps, each "
+        "correction a disturbance that keeps it from equilibrium.",
     )
     pour_overlap_slop: _Number = Field(
         default=1e-4,

@@ -86,8 +86,8 @@ class StepParameters:
         check_every: sweeps per convergence check.
         alert: detection distance, d.
         overlap_slop: overlap above which positions are corrected (to ``CORRECTED_OVERLAP`` of it), d;
-            ``0`` disables the correction. The default (1e-4 d) keeps every overlap of a pile at
-            rest below about 1e-4 d; 5e-3 leaves overlaps of up to 5e-3 d (module docstring).
+            ``0`` disables the correction. The default (5e-4 d) keeps every overlap of a pile at
+            rest below about 5e-4 d.
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
@@ -108,7 +108,7 @@ class StepParameters:
     max_iterations: int = 2000
     check_every: int = 10
     alert: float = 0.05
-    overlap_slop: float = 1e-4
+    overlap_slop: float = 5e-4
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
