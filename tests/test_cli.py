@@ -384,7 +384,8 @@ def test_run_json_prints_the_summary(finished, tmp_path, capsys):
 @pytest.fixture
 def default_sigint():
     """Python's default SIGINT handler for the test: a library used by an earlier test (e.g. a Dask
-    cluster) may have left its own, and ``run`` only takes over the default one."""
+    cluster) may have left its own or SIG_IGN, and ``run`` only takes over the default one (a child
+    process inherits SIG_IGN, and would never see the Ctrl-C)."""
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, previous)
@@ -464,7 +465,7 @@ def test_ctrl_c_inside_a_numba_kernel_is_an_interruption(finished, tmp_path, cap
     assert err.startswith("interrupted before the first checkpoint") and "--resume" in err
 
 
-def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path):
+def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path, default_sigint):
     """A real Ctrl-C (SIGINT to the process) while settling: exit 130, one line naming --resume."""
     config = tmp_path / "long.toml"
     # never done: more passing checks in a row than the run can make (its 20 spheres come to rest)
@@ -573,7 +574,7 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     assert "steps/s" in lines[-1]
 
 
-def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path):
+def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path, default_sigint):
     """Ctrl-C in a terminal signals the whole process group (the command and its Dask workers):
     exit 130, one line saying how to continue, the runs' checkpoints kept, no traceback."""
     spec = tmp_path / "c.toml"
