@@ -248,7 +248,8 @@ def advance(
     pr = prediction
     problem = assemble(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
-        restitution=params.restitution, friction=params.friction, side=_sides(pr.x_tt, state.box.lx),
+        restitution=params.restitution, friction=params.friction,
+        side=_sides(pr.x_tt, state.box.lx) if contacts.n_points >= params.parallel_points else None,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
     r0, n_warm = warm_impulses(
