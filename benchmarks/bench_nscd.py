@@ -6,8 +6,10 @@ pinacoids (``Pinacoid.from_size(1.0)``, circumscribed diameter 1, random orienta
 sphere deposit is already a dense contact network; the pinacoids, smaller than their spheres,
 are first settled with ``--settle`` frictionless steps (the column collapses and a contact
 network forms; the packing is dense in contacts but not yet at equilibrium). ``--gsd PATH``
-instead reads a settled packing written by ``granpack.io.gsd.write_packing``. Then ``--steps``
-steps are timed.
+instead reads a settled packing written by ``granpack.io.gsd.write_packing``; ``--tile K``
+(repeatable) replicates it K x K times across its periodic cell, a pile at rest of K^2 times
+as many grains (the cost of a step at rest against N). Then ``--steps`` steps are timed (after
+``--settle`` untimed ones, which give a tiled pile its warm start).
 
 Reported per case (JSON on stdout):
 
@@ -23,6 +25,7 @@ Usage::
     python benchmarks/bench_nscd.py                       # the three default cases
     python benchmarks/bench_nscd.py --case pinacoid:1000 --settle 200 --steps 20
     python benchmarks/bench_nscd.py --gsd settled.gsd --steps 20
+    python benchmarks/bench_nscd.py --gsd settled.gsd --tile 1 --tile 2 --tile 3 --settle 5
 """
 
 from __future__ import annotations
@@ -56,6 +59,17 @@ def packing(kind: str, n: int, seed: int = 1) -> ParticleState:
         shape, q = Pinacoid.from_size(1.0), random_quaternions(n, rng)
     return ParticleState(box=Box.square(lateral), shapes=ShapeTable.from_shapes([shape]), kind=np.zeros(n, int),
                          population=np.zeros(n, int), position=x, quaternion=q)
+
+
+def tiled(state: ParticleState, k: int) -> ParticleState:
+    """``state`` repeated ``k x k`` times across its periodic cell (a cell ``k`` times as wide)."""
+    lx, ly = state.box.lx, state.box.ly
+    shifts = np.array([(a * lx, b * ly, 0.0) for a in range(k) for b in range(k)])
+    position = (state.position[None, :, :] + shifts[:, None, :]).reshape(-1, 3)
+    return ParticleState(box=Box(lx * k, ly * k), shapes=state.shapes, kind=np.tile(state.kind, k * k),
+                         population=np.tile(state.population, k * k), position=position,
+                         quaternion=np.tile(state.quaternion, (k * k, 1)),
+                         velocity=np.tile(state.velocity, (k * k, 1)), omega=np.tile(state.omega, (k * k, 1)))
 
 
 def kernel_throughput(state, params, warm, sweeps: int = 200) -> tuple[float, int]:
@@ -118,7 +132,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", action="append", help="KIND:N with KIND sphere or pinacoid (repeatable)")
     ap.add_argument("--gsd", help="a settled packing (granpack.io.gsd.read_packing) instead of --case")
-    ap.add_argument("--settle", type=int, default=300, help="frictionless steps before timing (pinacoids)")
+    ap.add_argument("--tile", type=int, action="append", help="with --gsd: replicate it K x K times (repeatable)")
+    ap.add_argument("--settle", type=int, default=300, help="untimed steps before timing (pinacoids, tiled packings)")
     ap.add_argument("--steps", type=int, default=20, help="timed steps")
     ap.add_argument("--tolerance", type=float, default=1e-4)
     args = ap.parse_args(argv)
@@ -127,7 +142,11 @@ def main(argv=None):
     if args.gsd:
         from granpack.io.gsd import read_packing
 
-        results.append(run_case(args.gsd, read_packing(args.gsd).state, 0, args.steps, params))
+        state = read_packing(args.gsd).state
+        for k in args.tile or [1]:
+            settle = 0 if args.tile is None else args.settle
+            results.append(run_case(f"{args.gsd} x {k}x{k}", tiled(state, k), settle, args.steps, params))
+            print(json.dumps(results[-1]), flush=True)
     else:
         for case in args.case or ["pinacoid:1000", "pinacoid:3000", "sphere:3000"]:
             kind, n = case.split(":")

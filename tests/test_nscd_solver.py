@@ -196,15 +196,10 @@ def test_solver_residual_is_small_and_independent_of_warm_start(rng):
     assert kinetic_energy(state) == 0.0
 
 
-def test_two_thread_sweeps_solve_the_same_problem():
-    """The two-slab NLGS (points split by the halves of the cell their bodies lie in, the two
-    halves swept at once, the pairs across them after) converges to the same solution as the
-    sequential sweeps: a 4 x 4 x 3 lattice of spheres with lateral contacts across the periodic
-    boundary and the mid-plane, every point in one of the three groups."""
-    from granpack.nscd.integrator import _sides
-    from granpack.nscd.nlgs import _halves
-
-    pos = [[0.5 + i, 0.5 + j, 0.5 + k] for i in range(4) for j in range(4) for k in range(3)]
+def _lattice_problem(layers=3):
+    """A 4 x 4 x ``layers`` lattice of touching unit spheres on the wall, every neighbour pair a
+    contact (across the periodic boundary too): its state and assembled problem."""
+    pos = [[0.5 + i, 0.5 + j, 0.5 + k] for i in range(4) for j in range(4) for k in range(layers)]
     state = sphere_state(pos, box=4.0)
     params = StepParameters(time_step=H)
     pr = predict(state, params)
@@ -222,6 +217,42 @@ def test_two_thread_sweeps_solve_the_same_problem():
                 pairs.append((idx[tuple(np.round(q, 6))], n, tuple(shift)))
     walls = [n for n, p in enumerate(pos) if p[2] == 0.5]
     contacts = sphere_contacts(pr.state, pairs, walls)
+    return state, pr, contacts
+
+
+def test_lazy_sweeps_solve_the_same_projection():
+    """Sweeps that skip the points whose bodies have not moved (the position correction's
+    solve) give the same translations as full sweeps: one grain of a touching 4 x 4 x 6 lattice
+    overlapping the wall by 1e-3 d lifts the whole column above it through contacts closed at zero
+    gap, which the lazy sweeps reach only as the lift spreads up the column. The checks sweep
+    every point, so a wrong skip shows as more sweeps, not as another result."""
+    state, pr, contacts = _lattice_problem(layers=6)
+    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H)
+    wall_points = np.flatnonzero(problem.body[:, 1] == problem.n_bodies)
+    grain = problem.body[wall_points[0], 0]
+    offset = np.zeros(problem.n_points)
+    offset[wall_points[0]] = -1e-3
+    projection = problem.projection(offset)
+    full, info_full = solve(projection, NLGSOptions(tolerance=1e-12, max_iterations=200000))
+    lazy, info_lazy = solve(projection, NLGSOptions(tolerance=1e-12, max_iterations=200000, lazy=True))
+    assert info_full.converged and info_lazy.converged
+    assert info_lazy.iterations == info_full.iterations  # skipped points would not have changed
+    shift_full, shift_lazy = projection.velocity(full), projection.velocity(lazy)
+    column = np.flatnonzero(np.all(np.abs(pr.x_tt[:, :2] - pr.x_tt[grain, :2]) < 1e-9, axis=1))
+    assert len(column) == 6
+    np.testing.assert_allclose(shift_full[column, 2], 1e-3, rtol=1e-9)  # the column goes up as one
+    np.testing.assert_allclose(shift_lazy, shift_full, atol=1e-12)
+
+
+def test_two_thread_sweeps_solve_the_same_problem():
+    """The two-slab NLGS (points split by the halves of the cell their bodies lie in, the two
+    halves swept at once, the pairs across them after) converges to the same solution as the
+    sequential sweeps: a 4 x 4 x 3 lattice of spheres with lateral contacts across the periodic
+    boundary and the mid-plane, every point in one of the three groups."""
+    from granpack.nscd.integrator import _sides
+    from granpack.nscd.nlgs import _halves
+
+    state, pr, contacts = _lattice_problem()
     problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
                        side=_sides(pr.x_tt, state.box.lx))
     order, bounds = _halves(problem)

@@ -110,7 +110,7 @@ class StepParameters:
     alert: float = 0.05
     overlap_slop: float = 5e-4
     warm_tolerance: float = 0.05
-    correction_sweeps: int = 200
+    correction_sweeps: int = 20
     correction_step: float = 1e-3
     damping: float = 0.0
     parallel_points: int = 2**62
@@ -140,7 +140,7 @@ class StepParameters:
     def correction_options(self) -> NLGSOptions:
         sweeps = min(self.correction_sweeps, self.max_iterations)
         return NLGSOptions(tolerance=self.tolerance, max_iterations=sweeps, check_every=self.check_every,
-                           parallel_points=self.parallel_points)
+                           lazy=True)
 
 
 @dataclass(frozen=True)
