@@ -78,7 +78,7 @@ def test_end_game_steps_are_longer_and_checks_stay_on_their_interval(tmp_path):
     interval), so the checks stay every check_interval and every simulated step is counted."""
     import csv
 
-    config = sphere_config(max_time=10.5)  # the settled pile's end game starts near t = 9
+    config = sphere_config(max_time=20.0)
     config = config.model_copy(update={"solver": config.solver.model_copy(update={"end_game_step_factor": 3})})
     summary = run_packing(config, tmp_path, progress=False)
     with (tmp_path / simulation.TIMELINE_FILE).open(newline="") as f:

@@ -211,6 +211,12 @@ class SolverConfig(_Model):
         "halves of the cell at once); 0: one thread. Only worth it on an otherwise idle machine with "
         "2 cores or more: each sweep ends on a barrier, which waits for a descheduled thread.",
     )
+    acceleration: Literal["nncg", "none"] = Field(
+        default="nncg",
+        description="Acceleration of the NLGS velocity solve (frictionless, one thread): 'nncg' adds the "
+        "momentum of nonsmooth nonlinear conjugate gradients to each symmetric pair of sweeps (Gauss-Seidel "
+        "alone carries a load down a pile one layer per sweep); 'none': plain NLGS.",
+    )
     end_game: Literal["damping", "none"] = Field(
         default="damping",
         description="How a collapsed pile is brought to rest: 'damping' scales every grain's velocity by "
@@ -219,7 +225,7 @@ class SolverConfig(_Model):
         "undamped NSCD throughout.",
     )
     end_game_step_factor: int = Field(
-        default=1,
+        default=2,
         ge=1,
         description="Once the end game has started, each step is this many time steps long (one contact "
         "solve advances k h): a collapsed pile moves little per step, and the cost of a step at rest "

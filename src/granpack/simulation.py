@@ -152,7 +152,7 @@ def step_parameters(config: RunConfig) -> StepParameters:
         time_step=s.time_step, theta=s.theta, friction=s.friction, restitution=s.restitution,
         tolerance=s.tolerance, max_iterations=s.max_iterations, check_every=s.check_every,
         alert=config.resolved_alert_distance, overlap_slop=s.overlap_slop,
-        parallel_points=s.parallel_points if s.parallel_points > 0 else 2**62,
+        parallel_points=s.parallel_points if s.parallel_points > 0 else 2**62, nncg=s.acceleration == "nncg",
     )
 
 

@@ -98,6 +98,7 @@ class StepParameters:
         parallel_points: frictionless problems of at least this many points are swept by two
             threads, the two halves ``x < L_x/2`` and ``x >= L_x/2`` of the cell at once
             (:func:`granpack.nscd.nlgs.solve`); the default never does.
+        nncg: the velocity solve uses the NNCG momentum (:mod:`granpack.nscd.nlgs`).
     """
 
     time_step: float = 5e-3
@@ -114,6 +115,7 @@ class StepParameters:
     correction_step: float = 1e-3
     damping: float = 0.0
     parallel_points: int = 2**62
+    nncg: bool = False
 
     def __post_init__(self):
         if not self.time_step > 0:
@@ -134,7 +136,7 @@ class StepParameters:
     @property
     def solver_options(self) -> NLGSOptions:
         return NLGSOptions(tolerance=self.tolerance, max_iterations=self.max_iterations, check_every=self.check_every,
-                           parallel_points=self.parallel_points)
+                           parallel_points=self.parallel_points, nncg=self.nncg)
 
     @property
     def correction_options(self) -> NLGSOptions:

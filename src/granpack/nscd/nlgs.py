@@ -18,7 +18,9 @@ points are exactly the Signorini–Coulomb solutions):
 
 .. math:: r_T \\leftarrow \\mathrm{proj}_{D(μ r_n)}\\big(r_T - ρ_T u_T\\big), \\qquad ρ_T = 1/\\max(W_{tt}, W_{ss})
 
-Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic).
+Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic);
+frictionless problems may add the NNCG momentum to each pair of sweeps
+(:func:`_solve_frictionless_nncg`, docs: Method > NSCD, NNCG momentum).
 Convergence: LMGC90's 'Quad' norm (docs: Method > NSCD, convergence) evaluated on the sweep that ends each block
 of ``check_every`` sweeps, from the last two iterates ``r^k``, ``r^{k-1}`` of each active point
 (``r^k ≠ 0`` or ``r^{k-1} ≠ 0``), ``ΔU = W_αα (r^k - r^{k-1})``, ``r̄ = (r^k + r^{k-1})/2``:
@@ -84,6 +86,8 @@ class NLGSOptions:
             they save).
         lazy: a frictionless problem swept by one thread skips, between two checks, the points
             whose bodies have not moved since their last update (:func:`_solve_frictionless`).
+        nncg: a frictionless problem swept by one thread is solved with the NNCG momentum
+            (:func:`_solve_frictionless_nncg`); not with ``lazy``.
     """
 
     tolerance: float = 1e-4
@@ -91,6 +95,7 @@ class NLGSOptions:
     check_every: int = 10
     parallel_points: int = 2**62
     lazy: bool = False
+    nncg: bool = False
 
     def __post_init__(self):
         if not self.tolerance > 0:
@@ -124,6 +129,25 @@ def _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor):
     quad_dvr = np.sqrt(dvdvrr / n_act) / (wrr / n_act)
     mean_dvor = abs(dvor) / wrr
     return max(quad_dv, quad_dvr, mean_dvor)
+
+
+@jit(inline="always")
+def _push(d, i, j, dr, v):
+    """Numba: add the velocities of a normal impulse ``dr`` at the point of data row ``d`` to bodies i and j."""
+    a = dr * d[IMI]
+    b = dr * d[IMJ]
+    v[i, 0] += a * d[N0]
+    v[i, 1] += a * d[N0 + 1]
+    v[i, 2] += a * d[N0 + 2]
+    v[i, 3] += dr * d[KIN]
+    v[i, 4] += dr * d[KIN + 1]
+    v[i, 5] += dr * d[KIN + 2]
+    v[j, 0] -= b * d[N0]
+    v[j, 1] -= b * d[N0 + 1]
+    v[j, 2] -= b * d[N0 + 2]
+    v[j, 3] -= dr * d[KJN]
+    v[j, 4] -= dr * d[KJN + 1]
+    v[j, 5] -= dr * d[KJN + 2]
 
 
 @jit(inline="always")
@@ -167,20 +191,7 @@ def _sweep(body, data, offset, r, v, start, stop, forward, check, sums, lazy, mo
         if dr != 0.0 and moving.shape[0] > 0:
             moving[i] = True
             moving[j] = True
-        a = dr * d[IMI]
-        b = dr * d[IMJ]
-        v[i, 0] += a * d[N0]
-        v[i, 1] += a * d[N0 + 1]
-        v[i, 2] += a * d[N0 + 2]
-        v[i, 3] += dr * d[KIN]
-        v[i, 4] += dr * d[KIN + 1]
-        v[i, 5] += dr * d[KIN + 2]
-        v[j, 0] -= b * d[N0]
-        v[j, 1] -= b * d[N0 + 1]
-        v[j, 2] -= b * d[N0 + 2]
-        v[j, 3] -= dr * d[KJN]
-        v[j, 4] -= dr * d[KJN + 1]
-        v[j, 5] -= dr * d[KJN + 2]
+        _push(d, i, j, dr, v)
         if check and (r_old != 0.0 or r_new != 0.0):
             w = d[WNN]
             du = w * dr
@@ -230,6 +241,61 @@ def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_eve
             error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
             if error < tol:
                 return it + 1, error, True
+    return max_iterations, error, False
+
+
+@jit
+def _solve_frictionless_nncg(body, data, offset, r, v, tol, max_iterations, check_every):
+    """Numba: NLGS sweeps accelerated by nonsmooth nonlinear conjugate gradients (NNCG,
+    Silcowitz, Niebe & Erleben 2010); same contract as :func:`_solve_frictionless`.
+
+    One iteration is a symmetric pair of sweeps (forward then backward, a fixed map ``G``). With
+    ``g_k = G(r_k) - r_k`` and ``β = Σ W g_k² / Σ W g_{k-1}²``, the iterate gets the momentum
+    ``r <- max(0, G(r_k) + β p)``, ``p <- β p + g_k`` (the velocities follow every change of
+    ``r``); ``β > 1`` restarts (``p = 0``). Gauss–Seidel carries a load through a pile one layer
+    per sweep, so its sweeps grow with the pile's height; the momentum carries it further.
+    """
+    p = r.shape[0]
+    if p == 0:
+        return 0, 0.0, True
+    error = np.inf
+    sums = np.zeros(6)
+    flags = np.zeros(0, np.bool_)
+    before = r.copy()
+    direction = np.zeros(p)
+    previous = np.inf
+    for it in range(max_iterations):
+        check = (it + 1) % check_every == 0 or it + 1 == max_iterations
+        sums[:] = 0.0
+        forward = it % 2 == 0
+        _sweep(body, data, offset, r, v, 0, p, forward, check, sums, False, flags, flags)
+        if check:
+            error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
+            if error < tol:
+                return it + 1, error, True
+        if forward:
+            continue
+        norm = 0.0
+        for k in range(p):
+            g = r[k] - before[k]
+            norm += data[k, WNN] * g * g
+        beta = norm / previous if previous > 0.0 else 0.0
+        previous = norm
+        if beta > 1.0:
+            direction[:] = 0.0
+            beta = 0.0
+        for k in range(p):
+            g = r[k] - before[k]
+            if beta > 0.0:
+                r_new = r[k] + beta * direction[k]
+                if r_new < 0.0:
+                    r_new = 0.0
+                dr = r_new - r[k]
+                if dr != 0.0:
+                    r[k] = r_new
+                    _push(data[k], body[k, 0], body[k, 1], dr, v)
+            direction[k] = beta * direction[k] + g
+            before[k] = r[k]
     return max_iterations, error, False
 
 
@@ -411,7 +477,10 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         v = problem.velocity(impulse)
         rn = np.array(r0[:, 0], dtype=np.float64)
         groups = _halves(problem) if problem.n_points >= options.parallel_points else None
-        if groups is None:
+        if groups is None and options.nncg and not options.lazy:
+            it, err, ok = _solve_frictionless_nncg(problem.body, problem.normal_data, problem.offset, rn, v, tol,
+                                                   max_it, every)
+        elif groups is None:
             it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every,
                                               bool(options.lazy))
         else:
