@@ -416,8 +416,8 @@ def test_step_parameters_reject_bad_values_and_bound_the_correction_budget():
                 {"correction_sweeps": 0}, {"correction_step": 0.0}):
         with pytest.raises(ValueError):
             StepParameters(**bad)
-    assert StepParameters().correction_options.max_iterations == 20
-    assert StepParameters(max_iterations=10).correction_options.max_iterations == 10
+    assert StepParameters().correction_options.max_iterations == 200
+    assert StepParameters(max_iterations=50).correction_options.max_iterations == 50
     assert StepParameters(tolerance=3e-4).correction_options.tolerance == 3e-4
 
 

@@ -220,30 +220,6 @@ def _lattice_problem(layers=3):
     return state, pr, contacts
 
 
-def test_lazy_sweeps_solve_the_same_projection():
-    """Sweeps that skip the points whose bodies have not moved (the position correction's
-    solve) give the same translations as full sweeps: one grain of a touching 4 x 4 x 6 lattice
-    overlapping the wall by 1e-3 d lifts the whole column above it through contacts closed at zero
-    gap, which the lazy sweeps reach only as the lift spreads up the column. The checks sweep
-    every point, so a wrong skip shows as more sweeps, not as another result."""
-    state, pr, contacts = _lattice_problem(layers=6)
-    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H)
-    wall_points = np.flatnonzero(problem.body[:, 1] == problem.n_bodies)
-    grain = problem.body[wall_points[0], 0]
-    offset = np.zeros(problem.n_points)
-    offset[wall_points[0]] = -1e-3
-    projection = problem.projection(offset)
-    full, info_full = solve(projection, NLGSOptions(tolerance=1e-12, max_iterations=200000))
-    lazy, info_lazy = solve(projection, NLGSOptions(tolerance=1e-12, max_iterations=200000, lazy=True))
-    assert info_full.converged and info_lazy.converged
-    assert info_lazy.iterations == info_full.iterations  # skipped points would not have changed
-    shift_full, shift_lazy = projection.velocity(full), projection.velocity(lazy)
-    column = np.flatnonzero(np.all(np.abs(pr.x_tt[:, :2] - pr.x_tt[grain, :2]) < 1e-9, axis=1))
-    assert len(column) == 6
-    np.testing.assert_allclose(shift_full[column, 2], 1e-3, rtol=1e-9)  # the column goes up as one
-    np.testing.assert_allclose(shift_lazy, shift_full, atol=1e-12)
-
-
 def test_nncg_solves_a_tall_stack_to_the_same_velocities_in_fewer_sweeps():
     """The NNCG momentum (:func:`granpack.nscd.nlgs._solve_frictionless_nncg`) converges to the
     velocities of plain NLGS (unique, unlike the impulses) on a 4 x 4 x 12 lattice from a cold

@@ -98,7 +98,8 @@ class StepParameters:
         parallel_points: frictionless problems of at least this many points are swept by two
             threads, the two halves ``x < L_x/2`` and ``x >= L_x/2`` of the cell at once
             (:func:`granpack.nscd.nlgs.solve`); the default never does.
-        nncg: the velocity solve uses the NNCG momentum (:mod:`granpack.nscd.nlgs`).
+        nncg: the velocity solve and the position correction use the NNCG momentum
+            (:mod:`granpack.nscd.nlgs`).
     """
 
     time_step: float = 5e-3
@@ -111,7 +112,7 @@ class StepParameters:
     alert: float = 0.05
     overlap_slop: float = 5e-4
     warm_tolerance: float = 0.05
-    correction_sweeps: int = 20
+    correction_sweeps: int = 200
     correction_step: float = 1e-3
     damping: float = 0.0
     parallel_points: int = 2**62
@@ -142,7 +143,7 @@ class StepParameters:
     def correction_options(self) -> NLGSOptions:
         sweeps = min(self.correction_sweeps, self.max_iterations)
         return NLGSOptions(tolerance=self.tolerance, max_iterations=sweeps, check_every=self.check_every,
-                           lazy=True)
+                           parallel_points=self.parallel_points, nncg=self.nncg)
 
 
 @dataclass(frozen=True)

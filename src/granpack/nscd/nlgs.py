@@ -84,17 +84,14 @@ class NLGSOptions:
             (:func:`_solve_frictionless_halves`; the result does not depend on the number of
             threads Numba has); smaller ones by one (the threads' start-up would cost more than
             they save).
-        lazy: a frictionless problem swept by one thread skips, between two checks, the points
-            whose bodies have not moved since their last update (:func:`_solve_frictionless`).
         nncg: a frictionless problem swept by one thread is solved with the NNCG momentum
-            (:func:`_solve_frictionless_nncg`); not with ``lazy``.
+            (:func:`_solve_frictionless_nncg`).
     """
 
     tolerance: float = 1e-4
     max_iterations: int = 2000
     check_every: int = 10
     parallel_points: int = 2**62
-    lazy: bool = False
     nncg: bool = False
 
     def __post_init__(self):
@@ -151,15 +148,12 @@ def _push(d, i, j, dr, v):
 
 
 @jit(inline="always")
-def _sweep(body, data, offset, r, v, start, stop, forward, check, sums, lazy, moved, moving):
+def _sweep(body, data, offset, r, v, start, stop, forward, check, sums):
     """Numba: one Gauss–Seidel pass over points ``start..stop-1`` (forward or backward), in place.
 
     When ``check``, the 'Quad' sums of the pass's active points are added to ``sums``
-    ``(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)``. The bodies a nonzero update changes are flagged
-    in ``moving`` unless it is empty. When ``lazy``, a point neither of whose bodies is flagged
-    in ``moved`` (changed during the previous pass) or ``moving`` (changed during this one) is
-    skipped: its local velocity has not changed since its last update, which left it satisfied,
-    so its update would be zero. Inlined into its callers: a compiled call per point would cost a factor 2 in speed.
+    ``(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)``. Inlined into its callers: a compiled call per
+    point would cost a factor 2 in speed.
     """
     n = stop - start
     n_act = 0
@@ -168,8 +162,6 @@ def _sweep(body, data, offset, r, v, start, stop, forward, check, sums, lazy, mo
         k = start + step if forward else stop - 1 - step
         i = body[k, 0]
         j = body[k, 1]
-        if lazy and not (moved[i] or moved[j] or moving[i] or moving[j]):
-            continue
         d = data[k]
         u = (
             d[N0] * (v[i, 0] - v[j, 0])
@@ -188,9 +180,6 @@ def _sweep(body, data, offset, r, v, start, stop, forward, check, sums, lazy, mo
             r_new = 0.0
         dr = r_new - r_old
         r[k] = r_new
-        if dr != 0.0 and moving.shape[0] > 0:
-            moving[i] = True
-            moving[j] = True
         _push(d, i, j, dr, v)
         if check and (r_old != 0.0 or r_new != 0.0):
             w = d[WNN]
@@ -212,13 +201,8 @@ def _sweep(body, data, offset, r, v, start, stop, forward, check, sums, lazy, mo
 
 
 @jit
-def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every, lazy):
+def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every):
     """Numba: NLGS sweeps on normal impulses ``r`` (P,) and velocities ``v`` (N + 1, 6), in place.
-
-    With ``lazy``, the sweeps between two checks skip the points whose bodies have not moved
-    (:func:`_sweep`); the checks sweep every point. Same iterates up to rounding, at a cost that
-    follows the points that change: worth it when few impulses are nonzero (a position correction,
-    whose impulses start at zero and spread from the overlaps).
 
     Returns:
         ``(sweeps, error, converged)``.
@@ -228,15 +212,10 @@ def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_eve
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros(6)
-    flagged = v.shape[0] if lazy else 0  # no flags to keep without lazy sweeps
-    moved = np.ones(flagged, np.bool_)
-    moving = np.zeros(flagged, np.bool_)
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         sums[:] = 0.0
-        _sweep(body, data, offset, r, v, 0, p, it % 2 == 0, check, sums, lazy and not check, moved, moving)
-        moved, moving = moving, moved
-        moving[:] = False
+        _sweep(body, data, offset, r, v, 0, p, it % 2 == 0, check, sums)
         if check:
             error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
             if error < tol:
@@ -260,7 +239,6 @@ def _solve_frictionless_nncg(body, data, offset, r, v, tol, max_iterations, chec
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros(6)
-    flags = np.zeros(0, np.bool_)
     before = r.copy()
     direction = np.zeros(p)
     previous = np.inf
@@ -268,7 +246,7 @@ def _solve_frictionless_nncg(body, data, offset, r, v, tol, max_iterations, chec
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         sums[:] = 0.0
         forward = it % 2 == 0
-        _sweep(body, data, offset, r, v, 0, p, forward, check, sums, False, flags, flags)
+        _sweep(body, data, offset, r, v, 0, p, forward, check, sums)
         if check:
             error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
             if error < tol:
@@ -312,14 +290,13 @@ def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterat
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros((3, 6))
-    flags = np.zeros(0, np.bool_)
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         forward = it % 2 == 0
         sums[:, :] = 0.0
         for g in prange(2):
-            _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, check, sums[g], False, flags, flags)
-        _sweep(body, data, offset, r, v, bounds[2], bounds[3], forward, check, sums[2], False, flags, flags)
+            _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, check, sums[g])
+        _sweep(body, data, offset, r, v, bounds[2], bounds[3], forward, check, sums[2])
         if check:
             error = _quad_error(sums[:, 0].sum(), sums[:, 1].sum(), sums[:, 2].sum(), sums[:, 3].sum(),
                                 sums[:, 4].sum(), sums[:, 5].sum())
@@ -477,12 +454,11 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         v = problem.velocity(impulse)
         rn = np.array(r0[:, 0], dtype=np.float64)
         groups = _halves(problem) if problem.n_points >= options.parallel_points else None
-        if groups is None and options.nncg and not options.lazy:
+        if groups is None and options.nncg:
             it, err, ok = _solve_frictionless_nncg(problem.body, problem.normal_data, problem.offset, rn, v, tol,
                                                    max_it, every)
         elif groups is None:
-            it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every,
-                                              bool(options.lazy))
+            it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every)
         else:
             order, bounds = groups
             r_sorted = rn[order]
