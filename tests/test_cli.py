@@ -295,7 +295,7 @@ def test_run_outputs_are_readable_by_others_and_piped_progress_is_lines(finished
     assert lines[0].startswith("pouring 20 grains") and lines[1].startswith("poured in")
     settling = [line for line in lines if line.startswith("settling t = ")]
     assert settling and "kinetic energy" in settling[0] and "largest net force" in settling[0]
-    assert "contacts" in settling[0] and "criteria met" in settling[0]
+    assert "contacts" in settling[0] and "largest overlap" in settling[0] and "criteria met" in settling[0]
     assert done.stdout.startswith("not at rest after 1.00 sqrt(d/g)")
 
 

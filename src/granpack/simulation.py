@@ -107,6 +107,8 @@ TIMELINE_COLUMNS = (
     "wall_seconds", "cpu_seconds",
 )
 
+_OVERLAP_COLUMN = TIMELINE_COLUMNS.index("max_overlap")
+
 #: Verlet skin of the broad phase, as a fraction of the smallest grain size
 _SKIN_FRACTION = 0.1
 #: safety factor on the distance two grains can close in one step (see the module docstring)
@@ -505,7 +507,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
                 _timeline_row(counters, state, contacts, report, tolerance)
                 counters.last_report = report.as_dict()
-                bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window)
+                bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window,
+                           counters.timeline[-1][_OVERLAP_COLUMN])
                 if counters.passes >= eq.window:
                     status = STATUS_AT_REST
                     break
@@ -632,7 +635,8 @@ class _SettlingProgress:
     ``"bar"``: a rich progress bar; the simulated time comes first and stays on an 80-column
     terminal, the figures after the bar are cut to the width left. ``"lines"``: one line every
     :data:`_PROGRESS_LINE_SECONDS` of wall time (the first at the first check): simulated time,
-    step, steps per second, total kinetic energy, largest net force, contacts, criteria met.
+    step, steps per second, total kinetic energy, largest net force, contacts, largest overlap,
+    criteria met.
     ``"off"``: nothing.
     """
 
@@ -662,13 +666,14 @@ class _SettlingProgress:
             self._task = self._bar.add_task("settling", total=self.max_time, info="")
         return self
 
-    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int) -> None:
+    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int,
+               overlap: float) -> None:
         if self.mode == "bar" and self._bar is not None:
             flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
                                                                   ("E", report.energy_ok), ("W", report.wall_ok)))
             info = (f"[{flags}] {passes}/{window}  |F| {report.max_net_force:.1e}  E {report.kinetic_energy:.1e}  "
                     f"Ek {ek:.2e}  contacts {n_contacts}  |T| {report.max_net_torque:.1e}  "
-                    f"W {report.wall_force_over_weight:.4f}")
+                    f"W {report.wall_force_over_weight:.4f}  overlap {overlap:.1e}")
             self._bar.update(self._task, completed=min(t, self.max_time), info=info)
         elif self.mode == "lines":
             now = time.perf_counter()
@@ -680,7 +685,8 @@ class _SettlingProgress:
             self._last = (now, t)
             print(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
                   f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
-                  f"{n_contacts} contacts, criteria met: {_criteria_met(report)} ({passes}/{window} checks)",
+                  f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
+                  f"criteria met: {_criteria_met(report)} ({passes}/{window} checks)",
                   file=sys.stderr, flush=True)
 
     def __exit__(self, *exc):
