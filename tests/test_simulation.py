@@ -72,26 +72,6 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
 
 
-def test_end_game_steps_are_longer_and_checks_stay_on_their_interval(tmp_path):
-    """With solver.end_game_step_factor = 3, once the end game has started each solve advances
-    3 h, shortened to land on the next check (50 steps apart: 16 solves of 3 h and one of 2 h per
-    interval), so the checks stay every check_interval and every simulated step is counted."""
-    import csv
-
-    config = sphere_config(max_time=20.0)
-    config = config.model_copy(update={"solver": config.solver.model_copy(update={"end_game_step_factor": 3})})
-    summary = run_packing(config, tmp_path, progress=False)
-    with (tmp_path / simulation.TIMELINE_FILE).open(newline="") as f:
-        rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-    check_steps = round(config.equilibrium.check_interval / config.solver.time_step)
-    assert [int(r["step"]) for r in rows] == list(range(check_steps, summary["steps"] + 1, check_steps))
-    assert summary["simulated_time"] == pytest.approx(summary["steps"] * config.solver.time_step)
-    start = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.damping_below)
-    assert 0 < start < len(rows) - 1  # the end game started before the end
-    intervals_after = len(rows) - 1 - start
-    assert summary["nlgs"]["solves"] == int(rows[start]["step"]) + intervals_after * 17
-
-
 def test_run_folder_holds_resolved_config_final_packing_and_summary(settled):
     config, summary, out = settled
     assert {p.name for p in out.iterdir()} == {"config.toml", "final.gsd", "summary.json", "timeline.csv"}  # checkpoint removed

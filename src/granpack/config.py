@@ -224,13 +224,6 @@ class SolverConfig(_Model):
         "the steps whose equilibrium is checked, so the criteria judge undamped dynamics); 'none': "
         "undamped NSCD throughout.",
     )
-    end_game_step_factor: int = Field(
-        default=2,
-        ge=1,
-        description="Once the end game has started, each step is this many time steps long (one contact "
-        "solve advances k h): a collapsed pile moves little per step, and the cost of a step at rest "
-        "hardly depends on its length.",
-    )
     damping_rate: _Number = Field(default=1.0, gt=0, description="Rate of the end game's viscous damping, 1/sqrt(d/g).")
     damping_below: _Number = Field(
         default=1e-3,

@@ -26,8 +26,6 @@ undamped pile keeps a steady level of small motions long after it has collapsed;
 vanishes at rest, so it changes how fast the pile gets to its static equilibrium, not which
 forces hold it there. The criteria are evaluated on undamped steps: a grain creeping at the
 terminal speed ``v`` of the drag shows its unbalanced force ``γ m v`` there, and its kinetic energy.
-From then on each loop step advances ``solver.end_game_step_factor`` time steps with one contact
-solve, shortened before a check so that checks, checkpoints and ``max_time`` keep their step counts.
 
 Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
 above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
@@ -445,7 +443,6 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     snapshot_every = int(round(config.output.snapshot_interval / h)) if config.output.snapshot_interval > 0 else 0
     report: EquilibriumReport | None = None
     status = STATUS_NOT_AT_REST
-    checking = False
 
     def packing_now(extra: dict) -> Packing:
         packing = _packing(state, contacts if contacts is not None else ContactSet.empty(), config, mixture,
@@ -458,10 +455,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     interrupt = _Interrupt()
     with bar, interrupt:
         while counters.step < n_steps_max:
-            factor = min(config.solver.end_game_step_factor if counters.end_game else 1,
-                         check_every - counters.step % check_every, n_steps_max - counters.step)
-            h_step = factor * h
-            alert, substeps = step_alert(state, params.alert, h_step, ceiling)
+            alert, substeps = step_alert(state, params.alert, h, ceiling)
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             if alert == params.alert:
                 slop = params.overlap_slop
@@ -469,8 +463,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 slop = min(params.overlap_slop, pour_slop)
             else:
                 slop = 0.0  # no correction on this step of the pour
-            step_h = h_step / substeps
-            checking = (counters.step + factor) % check_every == 0
+            step_h = h / substeps
+            checking = (counters.step + 1) % check_every == 0
             damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
             step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
                                   damping=damping)
@@ -493,11 +487,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.damped_energy += info.damped_energy
                 counters.detection_seconds += info.detection_seconds
                 counters.solver_seconds += info.solver_seconds
-            before = counters.step
-            counters.step += factor
+            counters.step += 1
             counters.split_steps += 1 if substeps > 1 else 0
 
-            if checking:
+            if counters.step % check_every == 0:
                 report = check_equilibrium(state, contacts, step_h, criteria=criteria)
                 counters.passes = counters.passes + 1 if report.passed and counters.near_rest else 0
                 counters.end_game = counters.end_game or (
@@ -512,19 +505,18 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 if counters.passes >= eq.window:
                     status = STATUS_AT_REST
                     break
-            if snapshot_every and _crosses(before, factor, snapshot_every):
+            if snapshot_every and counters.step % snapshot_every == 0:
                 append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
-            checkpointed = _crosses(before, factor, checkpoint_every)
-            if checkpointed:
+            if counters.step % checkpoint_every == 0:
                 counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                 write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
             if interrupt.requested:  # Ctrl-C: stop here, the checkpoint of this step written
-                if not checkpointed:
+                if counters.step % checkpoint_every != 0:
                     counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                     write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
                 raise RunInterrupted(out_dir / CHECKPOINT_FILE, state.time, counters.step)
 
-    if report is None or not checking:
+    if report is None or counters.step % check_every != 0:
         report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), step_h,
                                    criteria=criteria)
         counters.last_report = report.as_dict()
@@ -536,11 +528,6 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     return summary
-
-
-def _crosses(step: int, advance: int, every: int) -> bool:
-    """Whether advancing from base step ``step`` by ``advance`` steps reaches or passes a multiple of ``every``."""
-    return (step + advance) // every > step // every
 
 
 def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
