@@ -288,11 +288,12 @@ def test_thin_grains_poured_into_a_narrow_cell_do_not_pass_through_each_other(tm
     # a grain passing through a plate (thickness 0.15 d) overlaps it by half that on the way.
     # Measured: 0.017 d at worst during the run (one impact; 0.013 without splitting on this
     # trajectory, 0.020 on the one of an earlier version); at the end, while the pile still
-    # moves, max 1.0e-3 d and mean 2.3e-5 d (the position correction, granpack.nscd.integrator,
-    # moves a grain by at most 1e-3 d per step)
+    # moves (the pour's corrections, every solver.pour_correction_interval = 5 steps), max 2.2e-3 d
+    # (1.0e-3 with a correction at every step) and mean 2.3e-5 d (the position correction,
+    # granpack.nscd.integrator, moves a grain by at most 1e-3 d per step)
     assert summary["max_overlap_during_run"] < 0.05
     final_gaps = read_packing(tmp_path / "final.gsd").contacts.gap
-    assert summary["final"]["max_overlap"] < 2e-3
+    assert summary["final"]["max_overlap"] < 5e-3
     assert -final_gaps[final_gaps < 0].mean() < 1e-4
     # the stored impulses are those of the last (sub)step: its length goes with them
     k = 5e-3 / read_packing(tmp_path / "final.gsd").time_step
