@@ -116,7 +116,7 @@ class StepParameters:
     correction_step: float = 1e-3
     damping: float = 0.0
     parallel_points: int = 2**62
-    nncg: bool = False
+    nncg: bool = True
 
     def __post_init__(self):
         if not self.time_step > 0:
