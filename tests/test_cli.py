@@ -553,7 +553,7 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
     progress = _SettlingProgress("bar", 200.0, 5e-3)
     with progress:
         progress._bar.stop()
-        progress.update(123.456, 1.23e-3, 1234, report, 2, 5)
+        progress.update(123.456, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
         screen = io.StringIO()
         Console(file=screen, width=80).print(progress._bar.get_renderable())
     line = screen.getvalue().splitlines()[0]
