@@ -21,6 +21,7 @@ Usage::
 
     python benchmarks/bench_settle.py --case pinacoids-1000 --out /tmp/settle --figure settle.png
     python benchmarks/bench_settle.py --case pinacoids-1000 --seed 12 --set solver.end_game=none
+    python benchmarks/bench_settle.py --figure-of RUN_DIR --figure-of RUN_DIR2 --figure settle.png
 """
 
 from __future__ import annotations
@@ -125,6 +126,14 @@ def run_case(name: str, out: Path, max_time: float, seed: int | None, overrides:
     }
 
 
+def timeline_of(run_dir: Path) -> dict:
+    """What :func:`figure` needs of a finished run folder: its name and its timeline."""
+    rows = _timeline(run_dir / TIMELINE_FILE)
+    case, _, seed = run_dir.name.rpartition("-seed")
+    return {"case": case or run_dir.name, "seed": seed, "timeline": [(r["time"], r["kinetic_energy_total"],
+                                                                      r["max_net_force"]) for r in rows]}
+
+
 def figure(results: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -155,7 +164,14 @@ def main(argv=None) -> None:
     parser.add_argument("--seed", type=int, help="seed instead of the case's")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE", help="config override")
     parser.add_argument("--figure", type=Path, help="timeline figure (PNG/SVG)")
+    parser.add_argument("--figure-of", type=Path, action="append", default=[], metavar="RUN_DIR",
+                        help="draw the figure of these finished run folders instead of running (repeatable)")
     args = parser.parse_args(argv)
+    if args.figure_of:
+        if not args.figure:
+            parser.error("--figure-of needs --figure")
+        figure([timeline_of(d) for d in args.figure_of], args.figure)
+        return
     results = []
     for name in args.case or list(CASES):
         res = run_case(name, args.out, args.max_time, args.seed, args.set)
