@@ -221,7 +221,7 @@ def _lattice_problem(layers=3):
 
 
 def test_nncg_solves_a_tall_stack_to_the_same_velocities_in_fewer_sweeps():
-    """The NNCG momentum (:func:`granpack.nscd.nlgs._solve_frictionless_nncg`) converges to the
+    """The NNCG momentum (:func:`granpack.nscd.nlgs._solve_frictionless`) converges to the
     velocities of plain NLGS (unique, unlike the impulses) on a 4 x 4 x 12 lattice from a cold
     start, the case where Gauss-Seidel carries the weight down one layer per sweep."""
     state, pr, contacts = _lattice_problem(layers=12)

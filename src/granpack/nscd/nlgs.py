@@ -20,7 +20,7 @@ points are exactly the Signorini–Coulomb solutions):
 
 Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic);
 frictionless problems may add the NNCG momentum to each pair of sweeps
-(:func:`_solve_frictionless_nncg`, docs: Method > NSCD, NNCG momentum).
+(:func:`_solve_frictionless`, docs: Method > NSCD, NNCG momentum).
 Convergence: LMGC90's 'Quad' norm (docs: Method > NSCD, convergence) evaluated on the sweep that ends each block
 of ``check_every`` sweeps, from the last two iterates ``r^k``, ``r^{k-1}`` of each active point
 (``r^k ≠ 0`` or ``r^{k-1} ≠ 0``), ``ΔU = W_αα (r^k - r^{k-1})``, ``r̄ = (r^k + r^{k-1})/2``:
@@ -85,7 +85,7 @@ class NLGSOptions:
             threads Numba has); smaller ones by one (the threads' start-up would cost more than
             they save).
         nncg: a frictionless problem swept by one thread is solved with the NNCG momentum
-            (:func:`_solve_frictionless_nncg`).
+            (:func:`_solve_frictionless`).
     """
 
     tolerance: float = 1e-4
@@ -201,8 +201,15 @@ def _sweep(body, data, offset, r, v, start, stop, forward, check, sums):
 
 
 @jit
-def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every):
+def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_every, nncg):
     """Numba: NLGS sweeps on normal impulses ``r`` (P,) and velocities ``v`` (N + 1, 6), in place.
+
+    With ``nncg``, each symmetric pair of sweeps (forward then backward, a fixed map ``G``) gets
+    the momentum of nonsmooth nonlinear conjugate gradients (NNCG, Silcowitz, Niebe & Erleben
+    2010): with ``g_k = G(r_k) - r_k`` and ``β = Σ W g_k² / Σ W g_{k-1}²``,
+    ``r <- max(0, G(r_k) + β p)``, ``p <- β p + g_k`` (the velocities follow every change of
+    ``r``); ``β > 1`` restarts (``p = 0``). Gauss–Seidel carries a load through a pile one layer
+    per sweep, so its sweeps grow with the pile's height; the momentum carries it further.
 
     Returns:
         ``(sweeps, error, converged)``.
@@ -212,35 +219,8 @@ def _solve_frictionless(body, data, offset, r, v, tol, max_iterations, check_eve
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros(6)
-    for it in range(max_iterations):
-        check = (it + 1) % check_every == 0 or it + 1 == max_iterations
-        sums[:] = 0.0
-        _sweep(body, data, offset, r, v, 0, p, it % 2 == 0, check, sums)
-        if check:
-            error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
-            if error < tol:
-                return it + 1, error, True
-    return max_iterations, error, False
-
-
-@jit
-def _solve_frictionless_nncg(body, data, offset, r, v, tol, max_iterations, check_every):
-    """Numba: NLGS sweeps accelerated by nonsmooth nonlinear conjugate gradients (NNCG,
-    Silcowitz, Niebe & Erleben 2010); same contract as :func:`_solve_frictionless`.
-
-    One iteration is a symmetric pair of sweeps (forward then backward, a fixed map ``G``). With
-    ``g_k = G(r_k) - r_k`` and ``β = Σ W g_k² / Σ W g_{k-1}²``, the iterate gets the momentum
-    ``r <- max(0, G(r_k) + β p)``, ``p <- β p + g_k`` (the velocities follow every change of
-    ``r``); ``β > 1`` restarts (``p = 0``). Gauss–Seidel carries a load through a pile one layer
-    per sweep, so its sweeps grow with the pile's height; the momentum carries it further.
-    """
-    p = r.shape[0]
-    if p == 0:
-        return 0, 0.0, True
-    error = np.inf
-    sums = np.zeros(6)
-    before = r.copy()
-    direction = np.zeros(p)
+    before = r.copy() if nncg else np.zeros(0)
+    direction = np.zeros(p if nncg else 0)
     previous = np.inf
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
@@ -251,30 +231,37 @@ def _solve_frictionless_nncg(body, data, offset, r, v, tol, max_iterations, chec
             error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
             if error < tol:
                 return it + 1, error, True
-        if forward:
-            continue
-        norm = 0.0
-        for k in range(p):
-            g = r[k] - before[k]
-            norm += data[k, WNN] * g * g
-        beta = norm / previous if previous > 0.0 else 0.0
-        previous = norm
-        if beta > 1.0:
-            direction[:] = 0.0
-            beta = 0.0
-        for k in range(p):
-            g = r[k] - before[k]
-            if beta > 0.0:
-                r_new = r[k] + beta * direction[k]
-                if r_new < 0.0:
-                    r_new = 0.0
-                dr = r_new - r[k]
-                if dr != 0.0:
-                    r[k] = r_new
-                    _push(data[k], body[k, 0], body[k, 1], dr, v)
-            direction[k] = beta * direction[k] + g
-            before[k] = r[k]
+        if nncg and not forward:
+            previous = _momentum(body, data, r, v, before, direction, previous)
     return max_iterations, error, False
+
+
+@jit
+def _momentum(body, data, r, v, before, direction, previous):
+    """Numba: the NNCG step of :func:`_solve_frictionless` after a pair of sweeps that took ``before``
+    to ``r`` (in place on ``r``, ``v``, ``before``, ``direction``); returns ``Σ W g²`` of this pair."""
+    p = r.shape[0]
+    norm = 0.0
+    for k in range(p):
+        g = r[k] - before[k]
+        norm += data[k, WNN] * g * g
+    beta = norm / previous if previous > 0.0 else 0.0
+    if beta > 1.0:
+        direction[:] = 0.0
+        beta = 0.0
+    for k in range(p):
+        g = r[k] - before[k]
+        if beta > 0.0:
+            r_new = r[k] + beta * direction[k]
+            if r_new < 0.0:
+                r_new = 0.0
+            dr = r_new - r[k]
+            if dr != 0.0:
+                r[k] = r_new
+                _push(data[k], body[k, 0], body[k, 1], dr, v)
+        direction[k] = beta * direction[k] + g
+        before[k] = r[k]
+    return norm
 
 
 @jit(parallel=True)
@@ -454,11 +441,9 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         v = problem.velocity(impulse)
         rn = np.array(r0[:, 0], dtype=np.float64)
         groups = _halves(problem) if problem.n_points >= options.parallel_points else None
-        if groups is None and options.nncg:
-            it, err, ok = _solve_frictionless_nncg(problem.body, problem.normal_data, problem.offset, rn, v, tol,
-                                                   max_it, every)
-        elif groups is None:
-            it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every)
+        if groups is None:
+            it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every,
+                                              bool(options.nncg))
         else:
             order, bounds = groups
             r_sorted = rn[order]
