@@ -28,10 +28,11 @@ docs' design notes):
 
 - translations only: in the mass metric a rotation of a small grain is cheap, and grains wedged
   between larger ones were turned far outside the linearisation;
-- no body moves by more than ``correction_step`` per pass, in two passes (pass 2 holds the bounded
-  bodies and undoes what pass 1's bound dug, its translations scaled by one common factor): an
-  unbounded correction and the gap anticipation of IQS fed each other (a corrected grain fell back
-  into the gaps the correction opened), and a per-body bound alone dug new overlaps;
+- no body moves by more than ``correction_step`` in one step, and the bound is one common factor
+  on every translation: an unbounded correction and the gap anticipation of IQS fed each other
+  (a corrected grain fell back into the gaps the correction opened); a per-body bound dug new
+  overlaps, and where most bodies of a column reached it, it lifted the column rigidly, which fell
+  back at the next step, every step (a pile of flat pinacoids never came to rest);
 - ``κ = 0.1``: a correction that leaves half the slop holds many contacts at ``-s/2`` and the
   velocity solve then needed far more sweeps at rest;
 - at most ``correction_sweeps`` NLGS sweeps: a partial correction is completed at the next steps.
@@ -310,31 +311,19 @@ def _sides(position: np.ndarray, lx: float) -> np.ndarray:
 def _position_correction(problem, gap_end: np.ndarray, params: StepParameters) -> tuple[np.ndarray, int]:
     """Bounded post-step projection (see the module docstring): ``(displacements (N + 1, 6), sweeps)``.
 
-    Pass 1 projects every linearised gap to ``>= -κ s`` and bounds each body's translation to
-    ``correction_step``. When a bound binds, pass 2 holds the bounded bodies still and moves the
-    others so that no contact ends deeper than before the correction (what pass 1's bound dug),
-    its translations scaled by one common factor to the same bound.
+    The projection brings every linearised gap to ``>= -κ s``; when some body would move by more
+    than ``correction_step``, every translation is scaled by one common factor ``λ`` so that the
+    longest is ``correction_step``. The linearised gaps then end at ``(1 - λ) g^end + λ g^full``
+    with ``g^full >= -κ s``: none deeper than before the correction, every overlap smaller.
     """
-    c = params.correction_step
     target = gap_end + CORRECTED_OVERLAP * params.overlap_slop
-    first = problem.projection(target)
-    pseudo, info = solve(first, params.correction_options)
-    sweeps = info.iterations
-    displacement = first.velocity(pseudo)
-    length = np.linalg.norm(displacement[:, :3], axis=1)
-    held = length > c
-    if not held.any():
-        return displacement, sweeps
-    displacement *= np.minimum(1.0, c / np.maximum(length, 1e-300))[:, None]
-    moved = first.local_velocity(displacement)[:, 0]
-    second = problem.projection(np.maximum(target, 0.0) + moved, held=held)
-    if second.offset.min() < 0.0:
-        pseudo, info = solve(second, params.correction_options)
-        sweeps += info.iterations
-        extra = second.velocity(pseudo)
-        longest = float(np.linalg.norm(extra[:, :3], axis=1).max())
-        displacement += extra * min(1.0, c / max(longest, 1e-300))
-    return displacement, sweeps
+    projection = problem.projection(target)
+    pseudo, info = solve(projection, params.correction_options)
+    displacement = projection.velocity(pseudo)
+    longest = float(np.linalg.norm(displacement[:, :3], axis=1).max())
+    if longest > params.correction_step:
+        displacement *= params.correction_step / longest
+    return displacement, info.iterations
 
 
 def step(state: ParticleState, params: StepParameters, warm: ContactSet | None = None) -> tuple[ContactSet, StepInfo]:

@@ -333,23 +333,17 @@ class ContactProblem:
             return float(num)
         return float(num / den)
 
-    def projection(self, offset: np.ndarray, held: np.ndarray | None = None) -> "ContactProblem":
+    def projection(self, offset: np.ndarray) -> "ContactProblem":
         """The translational frictionless problem of the same points for the position correction.
 
         New offsets, zero free velocity, no warm start, and no angular terms: ``W_nn = 1/m_i + 1/m_j``,
         so the 'velocities' of its solution are translations only (see
-        :mod:`granpack.nscd.integrator` for why rotations are left out). ``held`` (``(N + 1,)``
-        booleans) marks bodies that must not move (inverse mass 0); a point between two held
-        bodies (or a held body and the wall) gets no impulse.
+        :mod:`granpack.nscd.integrator` for why rotations are left out).
         """
         data = self.normal_data.copy()
         data[:, AIN : KJN + 3] = 0.0
-        if held is not None:
-            data[held[self.body[:, 0]], IMI] = 0.0
-            data[held[self.body[:, 1]], IMJ] = 0.0
-        data[:, WNN] = data[:, IMI] + data[:, IMJ]
-        movable = data[:, WNN] > 0.0
-        data[:, INVW] = np.where(movable, 1.0 / np.where(movable, data[:, WNN], 1.0), 0.0)
+        data[:, WNN] = data[:, IMI] + data[:, IMJ]  # > 0: every point has a grain on one side at least
+        data[:, INVW] = 1.0 / data[:, WNN]
         return replace(
             self,
             normal_data=data,
