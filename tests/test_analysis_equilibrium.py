@@ -97,6 +97,19 @@ def test_pressure_floor_near_surface():
     assert fields.z_surface == pytest.approx(9.5)
 
 
+def test_bulk_pressure_of_a_pile_thinner_than_the_top_margin_is_the_column_average():
+    """Two layers: the top of the bulk (2 d below the surface) is below every centre, so the
+    kinetic criterion's pressure is the column's Love-Weber average, not that of the lowest
+    centres alone (which, on a 1.6 d pile of flat & elongated grains, was one grain's: 0.0013
+    against a column average of 0.35, and the pile could never pass)."""
+    packing = sphere_column(3, 2)
+    fields = equilibrium_fields(packing.state, packing.contacts, H)
+    trace = stress_moments(packing.state, packing.contacts, H, trace_only=True)
+    column = -trace.sum() / (3.0 * packing.box.area * (fields.z_surface + 0.5))
+    assert fields.z_surface == pytest.approx(1.5)
+    assert fields.bulk_pressure == pytest.approx(column, rel=1e-12)
+
+
 def test_single_grain_without_contact_fails_cleanly():
     packing = single(Pinacoid.family("isometric"), position=(1, 1, 0.5))
     r = report(packing)

@@ -313,12 +313,15 @@ def equilibrium_fields(
     z_surf = surface_height(state, d_max)
     column_pressure = -trace.sum() / (3.0 * area * max(z_surf + 0.5 * d_max, d_max)) if state.n else 0.0
     if state.n:
-        z_top = max(z_surf - criteria.top_margin * d_max, float(z.min()))
+        bulk_top = z_surf - criteria.top_margin * d_max
+        z_top = max(bulk_top, float(z.min()))
         p_floor = float(slab_pressure(z, trace, area, d_max, np.array([z_top]))[0])
         if not p_floor > 0:
             p_floor = float(column_pressure)
-        below = z <= z_top
-        bulk_pressure = -trace[below].sum() / (3.0 * area * max(z_top + 0.5 * d_max, d_max))
+        if bulk_top > z.min():
+            bulk_pressure = -trace[z <= z_top].sum() / (3.0 * area * max(z_top + 0.5 * d_max, d_max))
+        else:  # a pile thinner than the top margin: the whole column
+            bulk_pressure = column_pressure
         if not bulk_pressure > 0:
             bulk_pressure = float(column_pressure)
         local = slab_pressure(z, trace, area, d_max, z)
