@@ -319,7 +319,7 @@ def equilibrium_fields(
         if not p_floor > 0:
             p_floor = float(column_pressure)
         if bulk_top > z.min():
-            bulk_pressure = -trace[z <= z_top].sum() / (3.0 * area * max(z_top + 0.5 * d_max, d_max))
+            bulk_pressure = -trace[z <= bulk_top].sum() / (3.0 * area * max(bulk_top + 0.5 * d_max, d_max))
         else:  # a pile thinner than the top margin: the whole column
             bulk_pressure = column_pressure
         if not bulk_pressure > 0:
