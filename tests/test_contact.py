@@ -996,3 +996,25 @@ def test_previous_axis_stays_the_normal_within_twice_the_band():
     kept_set = Detector(eps_f=7e-4).detect(state, 0.02, previous=previous)
     again = pair_manifold(Detector(eps_f=7e-4).detect(state, 0.02, previous=kept_set))
     assert np.allclose(again["normal"], kept["normal"], atol=1e-12)  # a fixed point: no flicker
+
+
+@pytest.mark.parametrize("shape", [Sphere(1.0), Pinacoid.from_size(1.0, 1, 1)], ids=["spheres", "pinacoids"])
+def test_per_body_reach_keeps_slow_pairs_at_the_base_alert_distance(shape):
+    """A fast grain raises the alert distance of its own pairs only: with ``reach`` the slow pair
+    0-1 (gap 0.05 d) is left out at alert 0.16 d, the pair 2-3 of the fast grain 2 (gap 0.1 d) is
+    kept, and so are the wall contacts of 0 and 1; without ``reach`` every pair within 0.16 d is."""
+    lift = 0.5 if isinstance(shape, Sphere) else float(-shape.vertices[:, 2].min())
+    width = 1.0 if isinstance(shape, Sphere) else float(np.ptp(shape.vertices[:, 0]))
+    centres = [[2.0, 2.0, lift], [2.0 + width + 0.05, 2.0, lift], [6.0, 6.0, 4.0], [6.0 + width + 0.1, 6.0, 4.0]]
+    state = make_state([shape], [0, 0, 0, 0], centres, np.tile([1.0, 0, 0, 0], (4, 1)))
+    pairs = lambda c: {(int(i), int(j)) for i, j in zip(c.body_i, c.body_j)}
+    everything = Detector().detect(state, 0.16)
+    assert pairs(everything) == {(0, -1), (1, -1), (0, 1), (2, 3)}
+    c = everything
+    gaps = {(int(c.body_i[k]), int(c.body_j[k])): c.gap[c.point_start[k]:c.point_start[k + 1]].min()
+            for k in range(c.n_manifolds)}
+    assert gaps[(0, 1)] == pytest.approx(0.05, abs=1e-9) and gaps[(2, 3)] == pytest.approx(0.1, abs=1e-9)
+    reached = Detector().detect(state, 0.16, reach=np.array([0.01, 0.01, 0.15, 0.01]))
+    assert pairs(reached) == {(0, -1), (1, -1), (2, 3)}
+    with pytest.raises(ValueError, match="reach must be 4 non-negative"):
+        Detector().detect(state, 0.16, reach=np.array([0.01, -0.01, 0.15, 0.01]))

@@ -138,6 +138,25 @@ def test_column_of_spheres_stands_still_with_each_contact_carrying_the_weight_ab
     assert np.abs(state.velocity).max() < 1e-12
 
 
+@pytest.mark.parametrize("scaled", [True, False], ids=["scaled", "unscaled"])
+def test_warm_start_across_a_change_of_time_step_keeps_a_column_at_rest(scaled):
+    """A column of 5 balls at rest, then one step twice as long from its impulses with a single
+    symmetric pair of sweeps: scaled by h_new / h_old (``warm_time_step``), the warm start is the
+    solution and nothing moves; unscaled, it carries half the weights and the column falls."""
+    state = make_state(Sphere(1.0), [[3.0, 3.0, 0.5 + 1.005 * k] for k in range(5)])
+    contacts, _ = run(state, StepParameters(time_step=H), 300)
+    assert np.abs(state.velocity).max() < 1e-12
+    params = StepParameters(time_step=2 * H, max_iterations=2, check_every=2)
+    prediction = predict(state, params)
+    detected = detect(prediction.state, params.alert, previous=contacts)
+    advance(state, prediction, detected, params, contacts, warm_time_step=H if scaled else None)
+    fall = float(np.abs(state.velocity).max())
+    if scaled:
+        assert fall < 1e-12
+    else:
+        assert fall > 1e-3  # half the impulses: the lowest ball loses g h / 2 = 5e-3 sqrt(g d)
+
+
 def test_stack_of_pinacoids_stands_still_with_each_contact_carrying_the_weight_above():
     z0, height = half_height(PIN, ON_FACE), 2 * half_height(PIN, ON_FACE)
     state = make_state(PIN, [[3.0, 3.0, z0 + k * (height + 0.005)] for k in range(3)], np.tile(ON_FACE, (3, 1)))

@@ -233,12 +233,13 @@ class SolverConfig(_Model):
         description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the end "
         "game starts (for good): with end_game = 'damping', the damping acts from then on.",
     )
-    end_game_time_step: _Number = Field(
-        default=1e-2,
+    near_rest_time_step: _Number = Field(
+        default=0.0,
         ge=0,
-        description="Time step of the end game (from the start of the damping, end_game = 'damping'), "
-        "sqrt(d/g); 0: time_step throughout. The slow creep that ends a settling takes the same simulated "
-        "time with h = 5e-3 or 1e-2, so the larger step halves its cost.",
+        description="Time step once the kinetic criterion is below `tolerance_below` (the fine NLGS "
+        "tolerance in use), sqrt(d/g); 0: time_step throughout. The creep that ends a settling is paced by "
+        "gravity and the drag, not by the step, so a longer step reaches rest for less; not earlier, as a "
+        "grain hitting at speed u during a step ends up to h u / 2 deep.",
     )
 
 

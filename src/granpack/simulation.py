@@ -26,11 +26,15 @@ undamped pile keeps a steady level of small motions long after it has collapsed;
 vanishes at rest, so it changes how fast the pile gets to its static equilibrium, not which
 forces hold it there. The criteria are evaluated on undamped steps: a grain creeping at the
 terminal speed ``v`` of the drag shows its unbalanced force ``γ m v`` there, and its kinetic energy.
-From the start of the end game the steps are of ``solver.end_game_time_step`` (1e-2) instead of
-``solver.time_step`` (5e-3): what is left then is a slow creep (the largest piles rest after 100 to
-150 sqrt(d/g)) whose pace is set by gravity and the drag, not by the time step, so a step twice as
-long costs half as much for the same end. Checks, checkpoints and snapshots fall on multiples of
-their intervals in simulated time, whatever the step.
+
+Time step near rest. From the first check below ``solver.tolerance_below`` (with the fine NLGS
+tolerance) the steps are of ``solver.near_rest_time_step`` (1e-2) instead of ``solver.time_step``
+(5e-3). What is left then is a slow creep (the widest piles rest after 100 to 150 sqrt(d/g)) whose
+pace is set by gravity and the drag, not by the step, so a step twice as long halves its cost.
+Not earlier: a grain closing a gap at speed ``u`` during a step ends up to ``h u / 2`` deep (the
+contact is predicted at ``x + h v / 2``), and at the start of the end game grains still hit at
+several 1e-2 sqrt(g d). Checks, checkpoints and snapshots fall on multiples of their intervals in
+simulated time, whatever the step.
 
 Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
 above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
@@ -135,6 +139,7 @@ class _Counters:
     correction_iterations: int = 0  # NLGS sweeps of the position corrections
     correction_energy: float = 0.0
     end_game: bool = False  # the end game's damping has started (once set, for good)
+    last_step: float = 0.0  # the (sub)step of the last solve, sqrt(d/g) (0: none yet)
     damped_energy: float = 0.0
     split_steps: int = 0  # steps split into substeps (alert distance above the cell's ceiling)
     solves: int = 0  # NLGS velocity solves (one per step, k per split step)
@@ -183,6 +188,19 @@ def step_alert(state: ParticleState, base: float, time_step: float, ceiling: flo
         return base, substeps
     level = base * 2.0 ** math.ceil(math.log2(need / base))
     return min(level, ceiling), substeps
+
+
+def step_reach(state: ParticleState, base: float, time_step: float, substeps: int) -> np.ndarray:
+    """``(N,)`` per-grain share of the alert distance of the next step, d (:meth:`Detector.detect`).
+
+    Grain p closes at most ``h_s (|v_p| + R_p |ω_p|) + g h h_s / 2`` of a gap in a substep of
+    ``h_s = h / substeps`` (its half of the bound of :func:`step_alert`), taken with the same
+    margin and at least ``base / 2``: a pair is searched up to the sum of its two reaches, so
+    one fast grain raises the alert distance of its own pairs only.
+    """
+    speed = np.linalg.norm(state.velocity, axis=1) + state.radius * np.linalg.norm(state.omega, axis=1)
+    h_sub = time_step / substeps
+    return np.maximum(0.5 * base, _ALERT_MARGIN * (h_sub * speed + 0.5 * time_step * h_sub))
 
 
 def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleState, Mixture]:
@@ -442,7 +460,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - params.alert)))
     ceiling = max(params.alert, room - skin)
     detector = Detector(skin=skin)
-    h_end = config.solver.end_game_time_step if config.solver.end_game_time_step > 0 else h
+    h_rest = config.solver.near_rest_time_step if config.solver.near_rest_time_step > 0 else h
     snapshot_interval = config.output.snapshot_interval
     report: EquilibriumReport | None = None
     status = STATUS_NOT_AT_REST
@@ -459,9 +477,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     interrupt = _Interrupt()
     with bar, interrupt:
         while state.time < eq.max_time - 1e-9 * h:
-            h_now = h_end if counters.end_game else h
+            h_now = h_rest if counters.near_rest else h
             t_start, t_end = state.time, state.time + h_now
             alert, substeps = step_alert(state, params.alert, h_now, ceiling)
+            reach = step_reach(state, params.alert, h_now, substeps) if alert > params.alert else None
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             if alert == params.alert:
                 slop = params.overlap_slop
@@ -477,9 +496,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             for _ in range(substeps):
                 prediction = predict(state, step_params)
                 t0 = time.perf_counter()
-                detected = detector.detect(prediction.state, alert, previous=contacts)
+                detected = detector.detect(prediction.state, alert, previous=contacts, reach=reach)
                 t1 = time.perf_counter()
-                contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0)
+                contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0,
+                                         warm_time_step=counters.last_step or None)
+                counters.last_step = step_h
                 counters.solves += 1
                 counters.iterations_total += info.iterations
                 counters.iterations_max = max(counters.iterations_max, info.iterations)

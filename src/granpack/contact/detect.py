@@ -135,13 +135,18 @@ class Detector:
     def n_builds(self) -> int:
         return self.verlet.n_builds
 
-    def detect(self, state: ParticleState, alert: float, previous: ContactSet | None = None) -> ContactSet:
+    def detect(self, state: ParticleState, alert: float, previous: ContactSet | None = None,
+               reach: np.ndarray | None = None) -> ContactSet:
         """All contact manifolds with gaps up to ``alert`` (see the module docstring).
 
         Args:
             state: positions (x, y wrapped or not) and orientations.
             alert: alert distance, d (>= 0).
             previous: manifolds of the previous step (temporal hysteresis), or None.
+            reach: ``(N,)`` per-body share of the alert distance, d, or None (``alert / 2`` each):
+                the pair ``(i, j)`` is kept up to a gap ``min(alert, reach_i + reach_j)``, the
+                wall pair of ``i`` up to ``min(alert, 2 reach_i)``. Grains that move slowly need
+                no more than the base alert distance even while one grain moves fast.
 
         Returns:
             The manifolds, ordered by ``i`` then ``j`` (wall first).
@@ -173,13 +178,24 @@ class Detector:
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
         out = narrow_phase(state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
                            tables.half_start, tables.half, shapes.axis_start, tables.axis_support,
-                           self.verlet.pair_start, self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert, eps_f,
+                           self.verlet.pair_start, self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert,
+                           _reach(reach, state.n, alert), eps_f,
                            tables.max_points, prev_i, prev_j, prev_n)
         body_i, body_j, shift, normal, ctype, point_start, point, gap, tested = out
         self.n_candidates = int(self.verlet.pair_start[-1])
         self.n_tested = int(tested)
         return ContactSet(body_i=body_i, body_j=body_j, shift=shift, normal=normal, ctype=ctype,
                           point_start=point_start, point=point, gap=gap, impulse=None)
+
+
+def _reach(reach: np.ndarray | None, n: int, alert: float) -> np.ndarray:
+    """``(N,)`` float64 per-body reach: ``reach`` checked, or ``alert / 2`` for every body."""
+    if reach is None:
+        return np.full(n, 0.5 * alert)
+    reach = np.ascontiguousarray(reach, dtype=np.float64)
+    if reach.shape != (n,) or not np.all(reach >= 0.0):
+        raise ValueError(f"reach must be {n} non-negative distances, got shape {reach.shape}")
+    return reach
 
 
 def _previous_arrays(previous: ContactSet | None, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -853,7 +853,7 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 @jit
 def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support, pair_start,
-                 pair_j, pair_axis, lx, ly, alert, eps_f, max_points, prev_i, prev_j, prev_n):
+                 pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i, prev_j, prev_n):
     """Contact manifolds of all candidate pairs and of the bottom wall.
 
     Args:
@@ -870,7 +870,10 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         pair_axis: ``(C,)`` per candidate pair of polyhedra, the code of the axis that separated
             it at the previous call (-1: none), read and updated (see :func:`_sat`).
         lx, ly: periods, d.
-        alert: alert distance, d.
+        alert: alert distance, d: the largest gap reported.
+        reach: ``(N,)`` per body, d: pair ``(i, j)`` reports gaps up to ``min(alert, reach_i + reach_j)``,
+            the wall pair of ``i`` up to ``min(alert, 2 reach_i)`` (``alert / 2`` everywhere: the
+            one alert distance for every pair).
         eps_f: feature band / rank tolerance, d.
         max_points: scratch rows, at least the largest vertex count and twice the largest face
             size plus one.
@@ -918,16 +921,17 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         ki = kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
-        if zi - ri < alert:
+        aw = min(alert, 2.0 * reach[i])
+        if zi - ri < aw:
             if is_sphere[ki]:
                 cnt = 0
                 g = zi - ri
-                if g < alert:
+                if g < aw:
                     pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
                     gp[0] = g
                     cnt = 1
             else:
-                cnt = _poly_wall(i, zi, geo, alert, pts, gp)
+                cnt = _poly_wall(i, zi, geo, aw, pts, gp)
             if cnt > 0:
                 cnt = _merge_points(pts, gp, cnt, eps_pt)
                 body_i[m], body_j[m] = i, -1
@@ -948,14 +952,15 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             sx = lx * math.floor(dx / lx + 0.5)
             sy = ly * math.floor(dy / ly + 0.5)
             ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
-            rr = ri + radius[kj] + alert
+            a = min(alert, reach[i] + reach[j])
+            rr = ri + radius[kj] + a
             if ox * ox + oy * oy + oz * oz >= rr * rr:
                 continue
             tested += 1
             if is_sphere[ki] and is_sphere[kj]:
                 d = math.sqrt(ox * ox + oy * oy + oz * oz)
                 g = d - ri - radius[kj]
-                if g > alert:
+                if g > a:
                     continue
                 if d > 0.0:
                     nx, ny, nz = ox / d, oy / d, oz / d
@@ -966,13 +971,13 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
                 gp[0] = g
                 cnt = 1
             elif is_sphere[kj]:
-                cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+                cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
             elif is_sphere[ki]:
-                cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+                cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
             else:
                 sat = _sat(rv, pv[j], pv[j + 1], pv[i], pv[i + 1], ax, pa[j], pa[j + 1], pa[i], pa[i + 1], dr, pd[j],
                            pd[j + 1], pd[i], pd[i + 1], half_start, half, axis_start, axis_support, kj, ki, ox, oy,
-                           oz, alert, inradius[kj] + inradius[ki], eps_f, X, Y, pair_axis[q])
+                           oz, a, inradius[kj] + inradius[ki], eps_f, X, Y, pair_axis[q])
                 pair_axis[q] = sat[13]
                 if sat[0]:
                     continue
@@ -982,7 +987,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
                     hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
                 else:
                     hx, hy, hz = 0.0, 0.0, 0.0
-                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:13], geo, tab, alert, eps_f, scr, pts, gp)
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat[1:13], geo, tab, a, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
             cnt = _merge_points(pts, gp, cnt, eps_pt)

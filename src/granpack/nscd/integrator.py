@@ -232,6 +232,7 @@ def advance(
     params: StepParameters,
     warm: ContactSet | None = None,
     detection_seconds: float = 0.0,
+    warm_time_step: float | None = None,
 ) -> tuple[ContactSet, StepInfo]:
     """Finish a step from the contacts detected at the predicted configuration (state advanced in place).
 
@@ -242,6 +243,9 @@ def advance(
         params: step settings.
         warm: the previous step's returned contacts (impulses), or ``None``.
         detection_seconds: reported in the :class:`StepInfo`.
+        warm_time_step: the step over which ``warm``'s impulses were taken, when it differs from
+            ``params.time_step``: they are scaled by ``h / warm_time_step`` (a resting contact
+            carries ``m g h``), so a change of step does not start the solve from wrong loads.
 
     Returns:
         ``(contacts, info)``: ``contacts`` with ``impulse`` set (world impulse on body i over the
@@ -260,6 +264,8 @@ def advance(
         warm, contacts, problem.tangent, pr.x_tt, pr.rot_tt, state.velocity, state.omega, h,
         (state.box.lx, state.box.ly), tol_warm, params.friction,
     )
+    if warm_time_step is not None and warm_time_step != h:
+        r0 *= h / float(warm_time_step)
     problem = replace(problem, initial_impulse=r0)
     impulse, info = solve(problem, params.solver_options)
     v_end = problem.velocity(impulse)
