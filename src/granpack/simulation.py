@@ -53,7 +53,10 @@ plus the Verlet skin must stay below ``L/2 - d_max`` (one periodic image per pai
 would exceed that ceiling (narrow cells, fast pours), the step is split into ``k`` substeps of
 ``h/k``, ``k`` the smallest integer for which ``a_n/k`` fits: a missed contact would appear
 already interpenetrating by up to the missing distance, and thin grains can then pass through
-each other. The Verlet skin is at most a quarter of the room the alert distance leaves.
+each other. The Verlet skin is at most a quarter of the room the alert distance leaves. Only the
+pairs of fast grains need the raised distance: each grain gets its share (:func:`step_reach`) and
+a pair is searched up to the sum of its two shares, so one thin grain spinning fast does not fill
+the contact problem with the far neighbours of every grain.
 
 Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
 grows frame by frame and is cut back to the checkpoint on resume):
