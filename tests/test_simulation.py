@@ -50,8 +50,8 @@ def test_small_run_reaches_certified_equilibrium(settled):
 def test_timeline_records_every_check_and_the_end_game(settled):
     """timeline.csv: one row per equilibrium check, its columns; the end game started once the
     kinetic criterion fell below solver.damping_below, and from then on the damping (none on the
-    checked steps, so the last checks judge free dynamics); the fine NLGS tolerance and the longer
-    time step (solver.near_rest_time_step) from the first check below solver.tolerance_below."""
+    checked steps, so the last checks judge free dynamics); the fine NLGS tolerance from the first
+    check below solver.tolerance_below."""
     import csv
 
     config, summary, out = settled
@@ -70,11 +70,9 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     fine = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.tolerance_below)
     assert all(r["nlgs_tolerance"] == config.solver.settling_tolerance for r in rows[: fine + 1])
     assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[fine + 1:])
-    # steps between checks: of time_step until the fine tolerance, of near_rest_time_step with it
-    steps = np.diff([0] + [int(r["step"]) for r in rows])
-    assert list(steps[: fine + 1]) == [round(interval / config.solver.time_step)] * (fine + 1)
-    h_rest = config.solver.near_rest_time_step or config.solver.time_step
-    assert list(steps[fine + 1:]) == [round(interval / h_rest)] * (len(rows) - fine - 1)
+    steps = np.diff([0] + [int(r["step"]) for r in rows])  # one check every check_interval of steps of h
+    assert list(steps) == [round(interval / config.solver.time_step)] * len(rows)
+
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
 
 

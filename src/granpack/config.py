@@ -233,14 +233,6 @@ class SolverConfig(_Model):
         description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the end "
         "game starts (for good): with end_game = 'damping', the damping acts from then on.",
     )
-    near_rest_time_step: _Number = Field(
-        default=0.0,
-        ge=0,
-        description="Time step once the kinetic criterion is below `tolerance_below` (the fine NLGS "
-        "tolerance in use), sqrt(d/g); 0: time_step throughout. The creep that ends a settling is paced by "
-        "gravity and the drag, not by the step, so a longer step reaches rest for less; not earlier, as a "
-        "grain hitting at speed u during a step ends up to h u / 2 deep.",
-    )
 
 
 class EquilibriumConfig(_Model):

@@ -27,15 +27,6 @@ vanishes at rest, so it changes how fast the pile gets to its static equilibrium
 forces hold it there. The criteria are evaluated on undamped steps: a grain creeping at the
 terminal speed ``v`` of the drag shows its unbalanced force ``γ m v`` there, and its kinetic energy.
 
-Time step near rest. From the first check below ``solver.tolerance_below`` (with the fine NLGS
-tolerance) the steps are of ``solver.near_rest_time_step`` (1e-2) instead of ``solver.time_step``
-(5e-3). What is left then is a slow creep (the widest piles rest after 100 to 150 sqrt(d/g)) whose
-pace is set by gravity and the drag, not by the step, so a step twice as long halves its cost.
-Not earlier: a grain closing a gap at speed ``u`` during a step ends up to ``h u / 2`` deep (the
-contact is predicted at ``x + h v / 2``), and at the start of the end game grains still hit at
-several 1e-2 sqrt(g d). Checks, checkpoints and snapshots fall on multiples of their intervals in
-simulated time, whatever the step.
-
 Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
 above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
 alert distance raised, see below); the velocity-level law alone never pushes an overlap back.
@@ -463,7 +454,6 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - params.alert)))
     ceiling = max(params.alert, room - skin)
     detector = Detector(skin=skin)
-    h_rest = config.solver.near_rest_time_step if config.solver.near_rest_time_step > 0 else h
     snapshot_interval = config.output.snapshot_interval
     report: EquilibriumReport | None = None
     status = STATUS_NOT_AT_REST
@@ -480,10 +470,9 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     interrupt = _Interrupt()
     with bar, interrupt:
         while state.time < eq.max_time - 1e-9 * h:
-            h_now = h_rest if counters.near_rest else h
-            t_start, t_end = state.time, state.time + h_now
-            alert, substeps = step_alert(state, params.alert, h_now, ceiling)
-            reach = step_reach(state, params.alert, h_now, substeps) if alert > params.alert else None
+            t_start, t_end = state.time, state.time + h
+            alert, substeps = step_alert(state, params.alert, h, ceiling)
+            reach = step_reach(state, params.alert, h, substeps) if alert > params.alert else None
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             if alert == params.alert:
                 slop = params.overlap_slop
@@ -491,7 +480,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 slop = min(params.overlap_slop, pour_slop)
             else:
                 slop = 0.0  # no correction on this step of the pour
-            step_h = h_now / substeps
+            step_h = h / substeps
             checking = _crosses(t_start, t_end, eq.check_interval, h)
             damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
             step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
