@@ -339,3 +339,24 @@ def test_overlap_slop_bounds_the_overlaps_of_a_settling_pinacoid_pile(tmp_path, 
         assert summary["final"]["max_overlap"] < 1e-4
     else:
         assert summary["final"]["max_overlap"] > 3e-4
+
+
+def test_step_reach_gives_a_struck_grain_the_reach_of_the_grain_that_strikes_it():
+    """Grain 0 falls at 4 sqrt(g d) onto grain 1, at rest and in contact with it; grain 2, far
+    away, rests: 0 and 1 get 1.5 (h 4 + h^2 / 2), 2 keeps base / 2 (no contacts given: 1 keeps it too)."""
+    from granpack import Box, ShapeTable, Sphere
+    from granpack.contact import ContactSet
+    from granpack.state import ParticleState
+
+    centres = np.array([[1.0, 1.0, 2.5], [1.0, 1.0, 1.5], [4.0, 4.0, 0.5]])
+    state = ParticleState(box=Box.square(6.0), shapes=ShapeTable.from_shapes([Sphere(1.0)]), kind=np.zeros(3, int),
+                          population=np.zeros(3, int), position=centres, quaternion=np.tile([1.0, 0, 0, 0], (3, 1)),
+                          velocity=np.array([[0, 0, -4.0], [0, 0, 0], [0, 0, 0]]))
+    touching = ContactSet(body_i=np.array([1, 2]), body_j=np.array([0, -1]), shift=np.zeros((2, 3)),
+                          normal=np.array([[0, 0, -1.0], [0, 0, 1.0]]), ctype=np.ones(2, int),
+                          point_start=np.array([0, 1, 2]), point=np.array([[1.0, 1.0, 2.0], [4.0, 4.0, 0.0]]),
+                          gap=np.zeros(2))
+    h, base = 5e-3, 0.02
+    fast = 1.5 * (h * 4.0 + 0.5 * h * h)
+    np.testing.assert_allclose(simulation.step_reach(state, base, h, 1, touching), [fast, fast, base / 2])
+    np.testing.assert_allclose(simulation.step_reach(state, base, h, 1), [fast, base / 2, base / 2])

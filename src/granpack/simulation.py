@@ -184,15 +184,26 @@ def step_alert(state: ParticleState, base: float, time_step: float, ceiling: flo
     return min(level, ceiling), substeps
 
 
-def step_reach(state: ParticleState, base: float, time_step: float, substeps: int) -> np.ndarray:
+def step_reach(state: ParticleState, base: float, time_step: float, substeps: int,
+               contacts: ContactSet | None = None) -> np.ndarray:
     """``(N,)`` per-grain share of the alert distance of the next step, d (:meth:`Detector.detect`).
 
-    Grain p closes at most ``h_s (|v_p| + R_p |ω_p|) + g h h_s / 2`` of a gap in a substep of
-    ``h_s = h / substeps`` (its half of the bound of :func:`step_alert`), taken with the same
-    margin and at least ``base / 2``: a pair is searched up to the sum of its two reaches, so
-    one fast grain raises the alert distance of its own pairs only.
+    Grain p closes at most ``h_s s_p + g h h_s / 2`` of a gap in a substep of ``h_s = h / substeps``
+    (its half of the bound of :func:`step_alert`), with ``s_p`` the largest surface speed
+    ``|v| + R |ω|`` of p and of the grains it touched at the last step (``contacts``): a resting
+    grain struck by a fast one leaves with at most the striker's speed (inelastic impact), so it
+    gets the striker's reach. Taken with the same margin as the alert distance and at least
+    ``base / 2``: a pair is searched up to the sum of its two reaches, so a fast grain raises the
+    alert distance of its own neighbourhood only.
     """
     speed = np.linalg.norm(state.velocity, axis=1) + state.radius * np.linalg.norm(state.omega, axis=1)
+    if contacts is not None and contacts.n_manifolds:
+        pair = contacts.body_j >= 0
+        i, j = contacts.body_i[pair], contacts.body_j[pair]
+        touched = speed.copy()
+        np.maximum.at(touched, i, speed[j])
+        np.maximum.at(touched, j, speed[i])
+        speed = touched
     h_sub = time_step / substeps
     return np.maximum(0.5 * base, _ALERT_MARGIN * (h_sub * speed + 0.5 * time_step * h_sub))
 
@@ -472,7 +483,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         while state.time < eq.max_time - 1e-9 * h:
             t_start, t_end = state.time, state.time + h
             alert, substeps = step_alert(state, params.alert, h, ceiling)
-            reach = step_reach(state, params.alert, h, substeps) if alert > params.alert else None
+            reach = step_reach(state, params.alert, h, substeps, contacts) if alert > params.alert else None
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
             if alert == params.alert:
                 slop = params.overlap_slop
