@@ -160,7 +160,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--case", action="append", choices=list(CASES), help="case to run (repeatable; default all)")
     parser.add_argument("--out", type=Path, default=Path("bench-settle"), help="folder for the runs")
-    parser.add_argument("--max-time", type=float, default=200.0, help="max_time of every run, sqrt(d/g)")
+    parser.add_argument("--max-time", type=float, default=300.0, help="max_time of every run, sqrt(d/g)")
     parser.add_argument("--seed", type=int, help="seed instead of the case's")
     parser.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE", help="config override")
     parser.add_argument("--figure", type=Path, help="timeline figure (PNG/SVG)")

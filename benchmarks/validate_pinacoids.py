@@ -448,7 +448,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", type=int, default=2, help="seeds per mixture (default 2)")
     parser.add_argument("--first-seed", type=int, default=1, help="first seed (default 1)")
     parser.add_argument("--out", type=Path, default=Path("runs/validate-pinacoids"), help="folder of the run folders")
-    parser.add_argument("--max-time", type=float, default=200.0, help="max_time of every run, sqrt(d/g) (default 200)")
+    parser.add_argument("--max-time", type=float, default=300.0, help="max_time of every run, sqrt(d/g) (default 300)")
     parser.add_argument("--lateral", type=float, default=None,
                         help="cell side for every mixture, d (default: 8 d from 3000 grains, 4 d from 1000, 3 d "
                              "below, narrowed or with more grains where the column would be too short)")

@@ -57,7 +57,7 @@ def test_defaults():
     assert s.alert_distance is None and s.check_every == 10
     e = cfg.equilibrium
     assert (e.max_time, e.force_tolerance, e.torque_tolerance, e.kinetic_tolerance, e.wall_tolerance) == (
-        200.0, 1e-4, 1e-4, 1e-8, 1e-4)
+        300.0, 1e-4, 1e-4, 1e-8, 1e-4)
     assert (e.window, e.check_interval) == (5, 0.25)
     assert (cfg.deposit.method, cfg.deposit.lateral) == ("drop", "walls")
     assert (cfg.output.checkpoint_interval, cfg.output.snapshot_interval) == (5.0, 0.0)

@@ -242,7 +242,8 @@ class EquilibriumConfig(_Model):
     """
 
     max_time: _Number = Field(
-        default=200.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g)."
+        default=300.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g). "
+        "3000 isometric pinacoids in an 8 d cell rest at about 190, 1000 in a 4 d cell at 70-110.",
     )
     force_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |F_p| / (d_p^2 P) for every grain.")
     torque_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |T_p| / (d_p^3 P) for every grain.")
