@@ -550,10 +550,10 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
 
     report = SimpleNamespace(force_ok=True, torque_ok=False, energy_ok=False, wall_ok=True, max_net_force=1.2e-2,
                              kinetic_energy=3e-5, max_net_torque=1e-3, wall_force_over_weight=0.9998)
-    progress = _SettlingProgress("bar", 200.0)
+    progress = _SettlingProgress("bar", 200.0, 5e-3)
     with progress:
         progress._bar.stop()
-        progress.update(123.456, 24691, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
+        progress.update(123.456, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
         screen = io.StringIO()
         Console(file=screen, width=80).print(progress._bar.get_renderable())
     line = screen.getvalue().splitlines()[0]

@@ -43,8 +43,7 @@ def test_small_run_reaches_certified_equilibrium(settled):
     assert eq["passed"] and abs(eq["wall_force_over_weight"] - 1.0) < 1e-4
     assert eq["max_net_force"] < 1e-4 and eq["kinetic_energy"] < 1e-8
     assert summary["final"]["max_overlap"] < 1e-4
-    assert summary["nlgs"]["mean_iterations"] > 0
-    assert summary["steps"] == round(summary["simulated_time"] / 5e-3)
+    assert summary["nlgs"]["mean_iterations"] > 0 and summary["steps"] == round(summary["simulated_time"] / 5e-3)
 
 
 def test_timeline_records_every_check_and_the_end_game(settled):
@@ -59,9 +58,9 @@ def test_timeline_records_every_check_and_the_end_game(settled):
         reader = csv.DictReader(f)
         assert tuple(reader.fieldnames) == simulation.TIMELINE_COLUMNS
         rows = [{k: float(v) for k, v in row.items()} for row in reader]
-    interval = config.equilibrium.check_interval
-    assert [r["time"] for r in rows] == pytest.approx([interval * (k + 1) for k in range(len(rows))])
-    assert rows[-1]["time"] == pytest.approx(summary["simulated_time"]) and rows[-1]["step"] == summary["steps"]
+    check_steps = round(config.equilibrium.check_interval / config.solver.time_step)
+    assert [int(r["step"]) for r in rows] == list(range(check_steps, summary["steps"] + 1, check_steps))
+    assert rows[-1]["time"] == pytest.approx(summary["simulated_time"])
     start = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.damping_below)
     assert all(r["damped_energy"] == 0 for r in rows[: start + 1])
     assert sum(r["damped_energy"] for r in rows[start + 1:]) > 0
@@ -70,9 +69,6 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     fine = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.tolerance_below)
     assert all(r["nlgs_tolerance"] == config.solver.settling_tolerance for r in rows[: fine + 1])
     assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[fine + 1:])
-    steps = np.diff([0] + [int(r["step"]) for r in rows])  # one check every check_interval of steps of h
-    assert list(steps) == [round(interval / config.solver.time_step)] * len(rows)
-
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
 
 

@@ -465,7 +465,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - params.alert)))
     ceiling = max(params.alert, room - skin)
     detector = Detector(skin=skin)
-    snapshot_interval = config.output.snapshot_interval
+    n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
+    check_every = max(1, int(round(eq.check_interval / h)))
+    checkpoint_every = max(1, int(round(config.output.checkpoint_interval / h)))
+    snapshot_every = int(round(config.output.snapshot_interval / h)) if config.output.snapshot_interval > 0 else 0
     report: EquilibriumReport | None = None
     status = STATUS_NOT_AT_REST
 
@@ -475,13 +478,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         return replace(packing, time_step=step_h)  # the contacts' impulses are over the last (sub)step
 
     step_h = h
-    checked = False  # whether the last step ended on an equilibrium check
 
-    bar = _SettlingProgress(mode, eq.max_time)
+    bar = _SettlingProgress(mode, eq.max_time, h)
     interrupt = _Interrupt()
     with bar, interrupt:
-        while state.time < eq.max_time - 1e-9 * h:
-            t_start, t_end = state.time, state.time + h
+        while counters.step < n_steps_max:
             alert, substeps = step_alert(state, params.alert, h, ceiling)
             reach = step_reach(state, params.alert, h, substeps, contacts) if alert > params.alert else None
             tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
@@ -492,7 +493,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             else:
                 slop = 0.0  # no correction on this step of the pour
             step_h = h / substeps
-            checking = _crosses(t_start, t_end, eq.check_interval, h)
+            checking = (counters.step + 1) % check_every == 0
             damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
             step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
                                   damping=damping)
@@ -520,8 +521,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             counters.step += 1
             counters.split_steps += 1 if substeps > 1 else 0
 
-            checked = checking
-            if checking:
+            if counters.step % check_every == 0:
                 report = check_equilibrium(state, contacts, step_h, criteria=criteria)
                 counters.passes = counters.passes + 1 if report.passed and counters.near_rest else 0
                 counters.end_game = counters.end_game or (
@@ -531,24 +531,23 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
                 _timeline_row(counters, state, contacts, report, tolerance)
                 counters.last_report = report.as_dict()
-                bar.update(state.time, counters.step, kinetic_energy(state), contacts.n_manifolds, report,
-                           counters.passes, eq.window, counters.timeline[-1][_OVERLAP_COLUMN])
+                bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window,
+                           counters.timeline[-1][_OVERLAP_COLUMN])
                 if counters.passes >= eq.window:
                     status = STATUS_AT_REST
                     break
-            if snapshot_interval > 0 and _crosses(t_start, t_end, snapshot_interval, h):
+            if snapshot_every and counters.step % snapshot_every == 0:
                 append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
-            checkpointed = _crosses(t_start, t_end, config.output.checkpoint_interval, h)
-            if checkpointed:
+            if counters.step % checkpoint_every == 0:
                 counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                 write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
             if interrupt.requested:  # Ctrl-C: stop here, the checkpoint of this step written
-                if not checkpointed:
+                if counters.step % checkpoint_every != 0:
                     counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                     write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
                 raise RunInterrupted(out_dir / CHECKPOINT_FILE, state.time, counters.step)
 
-    if report is None or not checked:
+    if report is None or counters.step % check_every != 0:
         report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), step_h,
                                    criteria=criteria)
         counters.last_report = report.as_dict()
@@ -560,15 +559,6 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     return summary
-
-
-def _crosses(t_start: float, t_end: float, interval: float, time_step: float) -> bool:
-    """Whether a step from ``t_start`` to ``t_end`` ends on or passes a multiple of ``interval``.
-
-    The times are sums of time steps, so a multiple is taken as reached ``1e-6 time_step`` early.
-    """
-    eps = 1e-6 * time_step
-    return math.floor((t_end + eps) / interval) > math.floor((t_start + eps) / interval)
 
 
 def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
@@ -668,12 +658,13 @@ class _SettlingProgress:
     ``"off"``: nothing.
     """
 
-    def __init__(self, mode: str, max_time: float):
+    def __init__(self, mode: str, max_time: float, time_step: float):
         self.mode = mode
         self.max_time = max_time
+        self.time_step = time_step
         self._bar = None
         self._task = None
-        self._last: tuple[float, int] | None = None  # (wall clock, step) of the last line
+        self._last: tuple[float, float] | None = None  # (wall clock, simulated time) of the last line
 
     def __enter__(self):
         if self.mode == "bar":
@@ -693,8 +684,8 @@ class _SettlingProgress:
             self._task = self._bar.add_task("settling", total=self.max_time, info="")
         return self
 
-    def update(self, t: float, step: int, ek: float, n_contacts: int, report: EquilibriumReport, passes: int,
-               window: int, overlap: float) -> None:
+    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int,
+               overlap: float) -> None:
         if self.mode == "bar" and self._bar is not None:
             flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
                                                                   ("E", report.energy_ok), ("W", report.wall_ok)))
@@ -708,9 +699,9 @@ class _SettlingProgress:
                 return
             rate = ""
             if self._last is not None and now > self._last[0]:
-                rate = f", {(step - self._last[1]) / (now - self._last[0]):.3g} steps/s"
-            self._last = (now, step)
-            print(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {step}{rate}, "
+                rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
+            self._last = (now, t)
+            print(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
                   f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
                   f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
                   f"criteria met: {_criteria_met(report)} ({passes}/{window} checks)",
