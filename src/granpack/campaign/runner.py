@@ -23,6 +23,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
+import threading
 import time
 import traceback
 import warnings
@@ -167,6 +169,19 @@ class _QuietShutdown:
             raise
 
 
+def dask_setup(worker: object) -> None:
+    """Preload of the local workers (run in each worker process as it starts, restarts
+    included): ignore SIGINT.
+
+    Ctrl-C in a terminal signals the whole process group. A worker that took it would close
+    itself while this process closes the cluster, and the two shutdowns race (a worker's
+    ``CommClosedError`` logged with its traceback); with the workers deaf to it, this process
+    alone closes the cluster and the interrupted runs keep their checkpoints.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 @contextlib.contextmanager
 def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterator[Client]:
     """A Dask client on the given scheduler, or on a new local cluster of processes."""
@@ -189,6 +204,7 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterato
         dashboard_address=None,
         silence_logs=logging.ERROR,
         env=_WORKER_ENV,
+        preload=[__name__],  # dask_setup below: the workers leave Ctrl-C to this process
     ) as cluster, Client(cluster) as client, quiet.interrupted():
         yield client
 
