@@ -290,6 +290,59 @@ def test_step_alert_splits_the_step_when_the_cell_cannot_hold_the_alert():
     assert simulation.step_alert(state, 0.02, 5e-3, 0.05) == (0.02, 1)
 
 
+def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_but_not_of_a_sphere():
+    pinacoid = load_config_dict({
+        "n_particles": 2, "lateral_size": 4.0,
+        "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [2.0, 3.0], "volume_fraction": 1.0}],
+    })
+    state, _ = simulation.initial_state(pinacoid)
+    state.velocity[:] = 0.0
+    state.omega[:] = 0.0
+    state.omega[1] = [0.0, 30.0, 40.0]  # |ω| h = 0.25 rad per step of 5e-3
+    assert simulation.step_alert(state, 0.02, 5e-3, 10.0, max_rotation=0.05)[1] == 5
+    assert simulation.step_alert(state, 0.02, 5e-3, 10.0)[1] == 1  # no bound on the turn
+    spheres, _ = simulation.initial_state(sphere_config(n=2))
+    spheres.velocity[:] = 0.0
+    spheres.omega[0] = [0.0, 30.0, 40.0]  # a sphere's gaps do not depend on its rotation
+    assert simulation.step_alert(spheres, 0.02, 5e-3, 10.0, max_rotation=0.05)[1] == 1
+
+
+@pytest.mark.parametrize("max_rotation, deepest", [(0.05, 1e-4), (np.inf, None)])
+def test_a_plate_spinning_onto_another_does_not_sink_into_it_when_its_steps_are_split(max_rotation, deepest):
+    """A flat & elongated pinacoid (thickness 0.15 d) lying on the floor, a second one above it
+    spinning at 57 rad/sqrt(d/g) about a horizontal axis (0.28 rad per step of 5e-3): in whole
+    steps it turns into the lower one 1.7e-2 d deep (the gaps are held linearised in the
+    velocities); split by :func:`simulation.step_alert` to 0.05 rad, not at all (measured 0)."""
+    from dataclasses import replace
+
+    from granpack import Box, ShapeTable
+    from granpack.contact import Detector
+    from granpack.nscd.integrator import StepParameters, step
+    from granpack.shapes import Pinacoid
+    from granpack.state import ParticleState
+
+    plate = Pinacoid.from_size(1.0, 2, 3)
+    half = float(plate.vertices[:, 2].max())  # half thickness, lying flat
+    width = float(plate.vertices[:, 1].max())
+    state = ParticleState(box=Box.square(6.0), shapes=ShapeTable.from_shapes([plate]), kind=np.zeros(2, int),
+                          population=np.zeros(2, int), position=[[3.0, 3.0, half], [3.0, 3.0, 2 * half + width + 0.05]],
+                          quaternion=[[1.0, 0.0, 0.0, 0.0]] * 2)
+    state.omega[1] = [40.0, 40.0, 0.0]
+    params = StepParameters(time_step=5e-3)
+    warm, sinks = None, 0.0
+    for _ in range(200):
+        alert, substeps = simulation.step_alert(state, params.alert, 5e-3, 2.0, max_rotation)
+        for _ in range(substeps):
+            warm, _ = step(state, replace(params, alert=alert, time_step=5e-3 / substeps), warm)
+        exact = Detector().detect(state, 0.0)
+        pair = np.repeat(exact.body_j >= 0, np.diff(exact.point_start))
+        sinks = max(sinks, -exact.gap[pair].min(initial=0.0))
+    if deepest is None:
+        assert sinks > 5e-3
+    else:
+        assert sinks < deepest
+
+
 def test_thin_grains_poured_into_a_narrow_cell_do_not_pass_through_each_other(tmp_path):
     # flat & elongated pinacoids (thickness 0.15 d) in a 2.25 d cell: the alert distance can grow
     # to 0.1 d at most, short of what a pour needs, so steps are split; without that, grains met

@@ -183,6 +183,13 @@ class SolverConfig(_Model):
         description=f"Gap below which a pair is a contact candidate, d; unset: automatic, "
         f"{AUTO_ALERT_FRACTION:g} x the largest grain size.",
     )
+    max_rotation: _Number = Field(
+        default=0.05,
+        gt=0,
+        description="Largest rotation of a polyhedron in one step, rad: a step in which some grain would turn "
+        "further is split into substeps. The gaps are held linearised in the velocities, and a turn by phi moves "
+        "a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for 0.05 rad and R = 0.5 d).",
+    )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
     overlap_slop: _Number = Field(
         default=5e-4,
