@@ -16,6 +16,7 @@ pushes although it was opening at the start of the step (a known property of the
 with a velocity-level impact law). Both are checked, step by step, on a pour.
 """
 
+from dataclasses import replace
 import subprocess
 import sys
 
@@ -447,10 +448,31 @@ def test_position_correction_lifts_to_the_corrected_overlap_at_most_one_correcti
     stops the correction/IQS treadmill, :mod:`granpack.nscd.integrator`); its velocity stays 0."""
     ball = Sphere(1.0)
     state = make_state(ball, [[0.0, 0.0, 0.5 - overlap]])
-    _, info = step(state, StepParameters(time_step=H, overlap_slop=1e-4))
+    _, info = step(state, StepParameters(time_step=H, overlap_slop=1e-4, recovery_rate=0.0))
     assert info.correction_iterations > 0
     assert state.position[0, 2] - (0.5 - overlap) == pytest.approx(lift, abs=1e-12)
     np.testing.assert_allclose(state.velocity[0], 0.0, atol=1e-15)
+
+
+def test_overlap_recovery_pushes_a_ball_out_of_the_wall_at_a_bounded_speed_and_stops_at_the_slop():
+    """A ball at rest 0.01 d into the wall, position correction off: the velocity law pushes it
+    out at ``recovery_speed`` (0.05 sqrt(g d)) while the excess over ``recovery_slop`` is large,
+    then at 0.2 of the excess per step, and it comes to rest (from step 45) with the overlap just
+    under the slop (3.75e-4 d: the last push goes on over the first half of the next step, θ = ½),
+    never launched off the wall. Without the recovery it stays 0.01 d in."""
+    ball = Sphere(1.0)
+    params = StepParameters(time_step=H, overlap_slop=0.0, tolerance=1e-10, max_iterations=20000)
+    state = make_state(ball, [[0.0, 0.0, 0.5 - 0.01]])
+    warm, info = step(state, params)
+    assert state.velocity[0, 2] == pytest.approx(params.recovery_speed, rel=1e-6)
+    overlaps = []
+    run(state, params, 600, warm, each=lambda n, s, c, i: overlaps.append(0.5 - s.position[0, 2]))
+    assert np.all(np.diff(overlaps) <= 1e-12) and overlaps[-1] > 0.0
+    assert params.recovery_slop - 2e-4 < overlaps[-1] <= params.recovery_slop
+    assert overlaps[100] == overlaps[-1] and state.velocity[0, 2] == 0.0
+    plain = make_state(ball, [[0.0, 0.0, 0.5 - 0.01]])
+    run(plain, replace(params, recovery_rate=0.0), 100)
+    assert 0.5 - plain.position[0, 2] == pytest.approx(0.01, abs=1e-9)
 
 
 def _manifold_gaps(state):
@@ -472,7 +494,7 @@ def test_capped_position_correction_never_digs_a_new_overlap():
     before = _manifold_gaps(state)
     assert before[(1, 2)] == pytest.approx(0.0, abs=1e-12) and before[(0, 1)] == pytest.approx(-0.02)
     params = StepParameters(time_step=H, overlap_slop=slop, tolerance=1e-8, max_iterations=20000,
-                            correction_sweeps=20000)
+                            correction_sweeps=20000, recovery_rate=0.0)
     _, info = step(state, params)
     after = _manifold_gaps(state)
     assert info.correction_iterations > 0
@@ -497,7 +519,7 @@ def test_bounded_position_correction_shrinks_every_overlap_of_a_column():
     state = make_state(Sphere(1.0), start.copy(), box=3.0)
     before = _manifold_gaps(state)
     params = StepParameters(time_step=H, overlap_slop=1e-4, tolerance=1e-10, max_iterations=20000,
-                            correction_sweeps=20000)
+                            correction_sweeps=20000, recovery_rate=0.0)
     _, info = step(state, params)
     after = _manifold_gaps(state)
     assert info.correction_iterations > 0

@@ -191,16 +191,32 @@ class SolverConfig(_Model):
         "a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for 0.05 rad and R = 0.5 d).",
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
-    overlap_slop: _Number = Field(
+    recovery_slop: _Number = Field(
         default=5e-4,
         ge=0,
-        description="Overlap above which positions are corrected after a step (to 0.1 of it), d; "
-        "0: none (pure velocity-level law, as LMGC90). The default keeps every overlap of a pile at "
-        "rest below about 5e-4 d; 1e-4 corrects a tall pile at rest every few hundred steps, each "
-        "correction a disturbance that keeps it from equilibrium.",
+        description="Overlap allowed, d: a deeper one is pushed back by the velocity law (a separating "
+        "velocity of recovery_rate x the excess per step, at most recovery_speed). A pile at rest keeps its "
+        "overlaps below it.",
+    )
+    recovery_rate: _Number = Field(
+        default=0.2,
+        ge=0,
+        description="Fraction of an overlap's excess over recovery_slop pushed back per step; 0: none (the "
+        "plain velocity-level law, which never pushes an overlap back, as LMGC90).",
+    )
+    recovery_speed: _Number = Field(
+        default=0.05,
+        ge=0,
+        description="Largest separating speed of the overlap recovery, sqrt(g d).",
+    )
+    overlap_slop: _Number = Field(
+        default=2e-3,
+        ge=0,
+        description="Overlap above which positions are also corrected after a step (a projection, to 0.1 of "
+        "it), d: a backstop for the overlaps the recovery has not yet pushed back; 0: none.",
     )
     pour_overlap_slop: _Number = Field(
-        default=1e-4,
+        default=2e-3,
         ge=0,
         description="The same while grains move fast (alert distance raised above alert_distance), d; "
         "the smaller of the two applies then.",

@@ -93,6 +93,10 @@ class StepParameters:
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
         correction_step: largest translation of a body by one position correction, d.
+        recovery_slop, recovery_rate, recovery_speed: the overlap recovery of the velocity law
+            (:mod:`granpack.nscd.problem`): an overlap deeper than ``recovery_slop`` (d) is pushed
+            back at ``recovery_rate`` of its excess per step, at most at ``recovery_speed``
+            (sqrt(g d)); ``recovery_rate`` 0: none.
         damping: rate γ of a viscous damping of every grain's velocity after the step,
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
             :mod:`granpack.simulation`).
@@ -115,6 +119,9 @@ class StepParameters:
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
+    recovery_slop: float = 5e-4
+    recovery_rate: float = 0.2
+    recovery_speed: float = 0.05
     damping: float = 0.0
     parallel_points: int = 2**62
     nncg: bool = True
@@ -132,6 +139,8 @@ class StepParameters:
             raise ValueError("alert, overlap_slop and warm_tolerance must be >= 0")
         if self.correction_sweeps < 1:
             raise ValueError(f"correction_sweeps must be >= 1, got {self.correction_sweeps}")
+        if not self.recovery_slop >= 0 or not self.recovery_rate >= 0 or not self.recovery_speed >= 0:
+            raise ValueError("recovery_slop, recovery_rate and recovery_speed must be >= 0")
         if not self.correction_step > 0:
             raise ValueError(f"correction_step must be > 0, got {self.correction_step}")
 
@@ -258,6 +267,7 @@ def advance(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
         restitution=params.restitution, friction=params.friction,
         side=_sides(pr.x_tt, state.box.lx) if contacts.n_points >= params.parallel_points else None,
+        recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
     r0, n_warm = warm_impulses(

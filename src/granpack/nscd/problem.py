@@ -17,8 +17,12 @@ point α (frozen at the predicted configuration of the step)
 
   .. math:: 0 \\le r_{n,α} \\perp u_{n,α} + c_α \\ge 0, \\qquad
             c_α = \\begin{cases} g_α / h & g_α > 0 \\ \\text{(IQS gap anticipation)} \\\\
-                                 e_N \\min(0, u^n_{n,α}) & g_α \\le 0 \\ \\text{(Newton restitution)}
+                                 e_N \\min(0, u^n_{n,α}) - ρ_α & g_α \\le 0 \\ \\text{(Newton restitution)}
                   \\end{cases}
+
+  with the overlap recovery ``ρ_α = min(v_r, β max(0, -g_α - s_r) / h)``: an overlap deeper than
+  ``s_r`` is pushed back at a fraction β of it per step, at most at the speed ``v_r``
+  (β = 0: none, the plain velocity-level law),
 
 - the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation),
 - the free velocities ``V_free`` ``(N + 1, 6)`` (world rows ``(v, ω^w)``, see
@@ -114,7 +118,7 @@ def _store_arm(row, col, a, e, inv_iw):
 @jit
 def _assemble_kernel(
     body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
-    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
 ):
     wall = x.shape[0]
     n = np.empty(3)
@@ -157,6 +161,9 @@ def _assemble_kernel(
                 u0 += cin0 * v_start[i, 3] + cin1 * v_start[i, 4] + cin2 * v_start[i, 5]
                 u0 -= cjn0 * v_start[j, 3] + cjn1 * v_start[j, 4] + cjn2 * v_start[j, 5]
                 offset[k] = restitution * min(0.0, u0)
+                excess = -gap[k] - recovery_slop
+                if recovery_rate > 0.0 and excess > 0.0:
+                    offset[k] -= min(recovery_speed, recovery_rate * excess / h)
             if with_friction:
                 f = fdata[k]
                 f[T0], f[T0 + 1], f[T0 + 2] = t[0], t[1], t[2]
@@ -367,6 +374,9 @@ def assemble(
     friction: float = 0.0,
     initial_impulse: np.ndarray | None = None,
     side: np.ndarray | None = None,
+    recovery_slop: float = 0.0,
+    recovery_rate: float = 0.0,
+    recovery_speed: float = 0.0,
 ) -> ContactProblem:
     """Build the contact problem of a step from the detected contacts.
 
@@ -382,6 +392,8 @@ def assemble(
         restitution: e_N in [0, 1].
         friction: Coulomb μ >= 0; 0 builds a frictionless problem (no tangential data).
         initial_impulse: ``(P, 3)`` local warm-start impulses, zeros if ``None``.
+        recovery_slop, recovery_rate, recovery_speed: ``s_r`` (d), β and ``v_r`` (sqrt(g d)) of the
+            overlap recovery (module docstring); ``recovery_rate`` 0: none.
         side: ``(N + 1,)`` 0 or 1 per body, the two halves a solver may sweep in parallel
             (:mod:`granpack.nscd.nlgs`), or ``None``.
 
@@ -420,6 +432,9 @@ def assemble(
         lever_j,
         fdata,
         with_friction,
+        float(recovery_slop),
+        float(recovery_rate),
+        float(recovery_speed),
     )
     if initial_impulse is None:
         initial_impulse = np.zeros((p, 3))
