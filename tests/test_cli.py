@@ -502,7 +502,7 @@ def test_check_prints_whole_tables_when_not_a_terminal(tmp_path, capsys, monkeyp
     path.write_text(f"n_particles = 3000\nlateral_size = 8.0\n\n{body}")
     code, out, err = run_main(["check", str(path)], capsys)
     assert code == 0 and "…" not in out
-    assert "pinacoid-0.4-1.5x1.25" in out and "0.142857" in out and "overlap slop" in out
+    assert "pinacoid-0.4-1.5x1.25" in out and "0.142857" in out and "overlaps pushed back above" in out
     assert max(len(line) for line in out.splitlines()) > 80
 
 

@@ -156,7 +156,8 @@ def check(
     console.print(f"solver: time step {solver.time_step:g} sqrt(d/g), friction {solver.friction:g}, restitution "
                   f"{solver.restitution:g}, tolerance {solver.tolerance:g} ({solver.settling_tolerance:g} far from rest), max "
                   f"iterations {solver.max_iterations}, theta {solver.theta:g}, check every {solver.check_every} sweeps, "
-                  f"overlap slop {solver.overlap_slop:g} d ({solver.pour_overlap_slop:g} while grains move fast)", markup=False)
+                  f"overlaps pushed back above {solver.recovery_slop:g} d, projected above {solver.overlap_slop:g} d "
+                  f"({solver.pour_overlap_slop:g} while grains move fast)", markup=False)
     console.print(f"equilibrium: max time {eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
                   f"{cfg.deposit.lateral} lateral boundaries", markup=False)
     if warning:

@@ -7,9 +7,10 @@ the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS (:mod:`granpac
 from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
 ``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into the cell.
 
-Position correction (docs: Method > Position correction). The velocity-level Signorini law
-(IQS, ``u_n + max(0, g)/h >= 0``) only stops overlaps from growing. After the velocity solve the
-end-of-step gap of every point is predicted to first order,
+Position correction (docs: Method > Overlap recovery and position correction). The velocity law
+pushes back overlaps deeper than ``recovery_slop`` at a bounded speed (:mod:`granpack.nscd.problem`);
+the projection here is the backstop for deeper ones, those an impact leaves. After the velocity
+solve the end-of-step gap of every point is predicted to first order,
 
 .. math:: g^{end}_α = g_α + θ h\\, u_{n,α}^{n+1},
 
