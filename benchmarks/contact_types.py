@@ -6,9 +6,12 @@ Usage::
 
 For each ``final.gsd`` (or any packing GSD) prints, over the bulk grains, N / Ns / Nd / Nt / Nc on
 the backbone and with the rattlers, and the rattler fraction, for the types from the
-force-bearing points (at several point thresholds ``point_tol``), from the gap rule (at several
-gap tolerances) and from detection; then the distribution of the point normal forces relative to
-the largest one of their manifold, which is what ``point_tol`` cuts.
+force-bearing points (at several point thresholds ``point_tol``, then at several manifold
+thresholds ``force_tol``, relative to the mean manifold force), from the gap rule (at several gap
+tolerances) and from detection; then the distribution of the point normal forces relative to the
+largest one of their manifold, which is what ``point_tol`` cuts, and that of the manifold forces
+relative to their mean, which is what ``force_tol`` cuts (the NLGS converges to a relative
+tolerance of 1e-4, so a manifold force below about 1e-4 of the mean is within its noise).
 """
 
 from __future__ import annotations
@@ -44,6 +47,9 @@ def report(path: Path) -> None:
     for point_tol in (0.0, 1e-6, 1e-3, 1e-2, 1e-1):
         co = Coordination((z_bot, z_top), point_tol=point_tol).compute(packing)
         print(_row(f"force, point_tol {point_tol:g}", co.figures, co.with_rattlers, co.rattler_fraction))
+    for force_tol in (1e-6, 1e-4, 1e-3, 1e-2):
+        co = Coordination((z_bot, z_top), force_tol=force_tol).compute(packing)
+        print(_row(f"force, force_tol {force_tol:g}", co.figures, co.with_rattlers, co.rattler_fraction))
     for gap_tol in (1e-5, 1e-4, 1e-3):
         co = Coordination((z_bot, z_top), gap_tol=gap_tol).compute(packing)
         g = co.by_rule["gap_rule"]
@@ -58,6 +64,12 @@ def report(path: Path) -> None:
     labels = ["<= 0", "(0, 1e-9]", "(1e-9, 1e-6]", "(1e-6, 1e-4]", "(1e-4, 1e-3]", "(1e-3, 1e-2]", "(1e-2, 0.1]", "(0.1, 1]"]
     print("points of force-bearing manifolds by f_n / max f_n of their manifold: "
           + ", ".join(f"{lab}: {n}" for lab, n in zip(labels, counts)))
+    fm = packing.manifold_normal_force
+    positive = fm[fm > 0]
+    if len(positive):
+        counts = np.bincount(np.searchsorted(edges, positive / positive.mean(), side="left"), minlength=len(edges) + 1)
+        labels = labels[1:] + ["> 1"]
+        print("force-bearing manifolds by F_n / mean F_n: " + ", ".join(f"{lab}: {n}" for lab, n in zip(labels, counts[1:])))
     if not valid:
         print("warning: no valid bulk region")
 
