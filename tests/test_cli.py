@@ -520,6 +520,35 @@ def test_check_json_and_the_short_column_warning(tmp_path, capsys):
     assert code == 0 and err == ""  # the demo's pile has a bulk region
 
 
+def test_check_expects_a_mix_of_sizes_to_settle_denser(tmp_path, capsys):
+    """1040 grains of study-small's pinacoids-small-30 (sizes 1 and 1/3, 30 % small, 2.25 d cell)
+    fill 5.5 d at a solid fraction of 0.6, but such a pile settled at 0.72-0.74 with its surface
+    at 4.59 d and no bulk region: the check estimates mixes of sizes at 0.72 and warns; one size
+    with the same grains' volume stands above 5 d and does not warn."""
+    mix = """n_particles = {n}
+lateral_size = 2.25
+[[populations]]
+shape = "pinacoid"
+size = 1.0
+volume_fraction = {large}
+{small}"""
+    small = """[[populations]]
+shape = "pinacoid"
+size = 0.3333333333
+volume_fraction = 0.3
+"""
+    path = tmp_path / "mix.toml"
+    path.write_text(mix.format(n=1040, large=0.7, small=small))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and err.startswith("warning: the settled pile will stand about 4.6 d high (solid fraction about 0.72")
+    path.write_text(mix.format(n=1320, large=0.7, small=small))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and err == ""
+    path.write_text(mix.format(n=117, large=1.0, small=""))  # 117 large grains: about the same volume, one size
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and err == "", err
+
+
 def test_analyze_warnings_are_clean_lines_with_the_true_cause(finished, tmp_path, capsys):
     _, source, _ = finished
     out = tmp_path / "run"

@@ -51,8 +51,12 @@ def test_every_campaign_run_leaves_a_bulk_region(path):
         warning = _column_warning(config, Mixture.from_config(config))
         if warning is not None:
             short[run.mixture] = warning
-        # study-small's floor: 5 d / 0.9 (the examples' headers); the study: validate's 8 d
-        floor = 5.55 if path.name == "study-small.toml" else 7.95
+        # study-small's floor: 5 d / 0.9 (the examples' headers); the study: validate's 8 d.
+        # Mixes of two sizes settle denser (0.72-0.74, not 0.6): their surface stood at 0.83-0.84
+        # of the estimate (pinacoids-small-30 sized at 5.5 d: 4.59 d, no bulk; -13 at 6.4 d:
+        # 5.40 d), hence 6.4 d for them, a surface near 5.3 d.
+        bidisperse = len({p.size for p in config.populations}) > 1
+        floor = (6.4 if bidisperse else 5.55) if path.name == "study-small.toml" else 7.95
         assert _expected_column(config) >= floor, (run.mixture, _expected_column(config))
     assert not short, short
 
