@@ -97,8 +97,10 @@ def test_check_prints_mixture_table(tmp_path, capsys, monkeypatch):
     path.write_text(GOOD)
     code, out, err = run_main(["check", str(path)], capsys)
     assert code == 0
-    # 3000 grains, 70 % of the volume in 239 unit pinacoids: 1.3 d high over 8 d x 8 d
-    assert err.startswith("warning: the settled pile will stand about 1.3 d high") and err.count("\n") == 1
+    # 3000 grains, 70 % of the volume in 239 unit pinacoids: 1.1 d high over 8 d x 8 d at a solid
+    # fraction of 0.72 (a mix of sizes), 1.3 d at 0.6
+    assert err.startswith("warning: the settled pile will stand about 1.1 d high (solid fraction about 0.72")
+    assert err.count("\n") == 1
     for text in ("pinacoid-1-1x1", "pinacoid-0.333333-1x1", "239", "2761", "0.700000", "0.700347", "0.299653",
                  "N = 3000", "lateral size = 8 d", "time step 0.002", "alert distance = 0.02 d (automatic)"):
         assert text in out, text
