@@ -90,13 +90,19 @@ def _note(message: str) -> None:
     typer.echo(message, err=True)
 
 
+#: solid fraction at which `granpack check` expects a settled pile of one grain size to stand
+#: (measured 0.61-0.67 for the pinacoid and sphere piles, benchmarks/README.md)
+_PHI_ONE_SIZE = 0.6
+#: the same for a mix of sizes (measured 0.70-0.74 for mixes of sizes 1 and 1/3)
+_PHI_MIXED_SIZES = 0.72
+
+
 def _column_warning(cfg, mixture) -> str | None:
     """A warning when the settled pile is expected to be too low for a bulk region (else None).
 
     The height is estimated as the grains' volume over the cell area at a solid fraction of
-    0.6, or 0.72 for a mix of grain sizes (small grains fill the voids of the large ones: the
-    study-small campaign's piles of two sizes stood at 0.83 of the estimate at 0.6, and one of
-    them, estimated 5.5 d, kept no bulk); the bulk region of ``granpack analyze`` starts
+    :data:`_PHI_ONE_SIZE`, or :data:`_PHI_MIXED_SIZES` for a mix of grain sizes, whose small
+    grains fill the voids of the large ones; the bulk region of ``granpack analyze`` starts
     ``n_bottom d`` above the wall, ends ``n_top d`` below the surface and must be at least ``d``
     thick (``d`` the largest grain size, :class:`granpack.analysis.report.AnalysisOptions`).
     """
@@ -106,7 +112,7 @@ def _column_warning(cfg, mixture) -> str | None:
     rows = mixture.table()
     volume = sum(row["count"] * row["particle_volume"] for row in rows)
     d = max(row["size"] for row in rows)
-    phi = 0.72 if len({row["size"] for row in rows}) > 1 else 0.6
+    phi = _PHI_MIXED_SIZES if len({row["size"] for row in rows}) > 1 else _PHI_ONE_SIZE
     height = volume / (phi * cfg.lateral_size ** 2)
     needed = (opt.n_bottom + opt.n_top + 1.0) * d
     if height >= needed:

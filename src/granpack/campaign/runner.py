@@ -201,7 +201,7 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterato
         n_workers=n_workers,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=":0",  # any free port: a second campaign on the machine warns of none
+        dashboard_address=":0",  # any free port: with the default, 8787, a second campaign on the machine warns
         silence_logs=logging.ERROR,
         env=_WORKER_ENV,
         preload=[__name__],  # dask_setup below: the workers leave Ctrl-C to this process
