@@ -998,6 +998,25 @@ def test_previous_axis_stays_the_normal_within_twice_the_band():
     assert np.allclose(again["normal"], kept["normal"], atol=1e-12)  # a fixed point: no flicker
 
 
+@pytest.mark.parametrize("eps_f, kept", [(2.2e-4, True), (1.8e-4, False)])
+def test_previous_axis_is_kept_within_five_bands_and_left_beyond(eps_f, kept):
+    """The kept band is 5 eps_f: the face axis 1.0e-3 d worse than the best (edge) axis stays the
+    normal at eps_f = 2.2e-4 d (4.5 bands; a band of 2 eps_f lost it) and is left for the edge
+    axis at 1.8e-4 d (5.6 bands). A narrow loop between the bands fed a grain sliding between
+    parallel faces energy at each swing, and the pile never came to rest."""
+    state = _flicker_pair()
+    face_normal = np.array([-0.6930802, -0.1327286, -0.7085358])
+    face_normal /= np.linalg.norm(face_normal)
+    fresh = Detector(eps_f=eps_f).detect(state, 0.02)
+    previous = ContactSet(**{**fresh.__dict__, "normal": np.array(fresh.normal, float)})
+    previous.normal[0] = face_normal
+    m = pair_manifold(Detector(eps_f=eps_f).detect(state, 0.02, previous=previous))
+    if kept:
+        assert abs(m["normal"] @ face_normal) > 1 - 1e-9 and len(m["gaps"]) > 1
+    else:
+        assert abs(m["normal"] @ face_normal) < 0.99995 and m["ctype"] == SIMPLE and len(m["gaps"]) == 1
+
+
 @pytest.mark.parametrize("shape", [Sphere(1.0), Pinacoid.from_size(1.0, 1, 1)], ids=["spheres", "pinacoids"])
 def test_per_body_reach_keeps_slow_pairs_at_the_base_alert_distance(shape):
     """A fast grain raises the alert distance of its own pairs only: with ``reach`` the slow pair

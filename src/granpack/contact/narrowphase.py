@@ -34,9 +34,16 @@ neighbour, even in a pile at rest (measurements: docs/design-notes.md).
 Temporal coherence: a pair keeps the code of the axis that last separated it (tried first), and
 a touching pair's previous normal orders the manifold candidates (a previous edge-edge normal
 that is also nearly a face axis selects the face: the faces have met), and the axis it matches
-stays a candidate within ``2 eps_f`` of the best separation (the others within ``eps_f``): with
+stays a candidate within ``5 eps_f`` of the best separation (the others within ``eps_f``). With
 one band, an axis at its edge flickered in and out from step to step, the normal and the force of
-the manifold turning with it, and a pile at rest never balanced its forces.
+the manifold turning with it, and a pile at rest never balanced its forces. The width of the
+loop matters too: a manifold switching between two axes a fraction of a degree apart turns its
+normal at a place that depends on the direction of travel, so its force runs a loop in position
+that feeds a grain sliding to and fro (in a slot between parallel faces) energy at each swing,
+in proportion to the loop's width, while the end game's damping takes energy in proportion to
+the square of the swing. A loop of ``eps_f`` (the bands ``eps_f`` and ``2 eps_f``) kept such a
+grain swinging by 1e-3 d for tens of sqrt(d/g); with ``4 eps_f`` the swing needed to go round
+the loop is more than the loop can sustain, and the grain stops (benchmarks/README.md).
 
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
@@ -58,6 +65,9 @@ __all__ = ["world_geometry", "narrow_phase"]
 _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE = 0, 1, 2
 #: |cos| between the previous normal and an axis above which the axis counts as the previous one
 _HINT_COS = 0.999
+#: the previous step's axis stays a manifold candidate within this many eps_f of the best
+#: separation (the others within one); the edge-axis pruning of :func:`_sat` keeps as many
+_KEEP_BAND = 5.0
 
 
 @jit
@@ -198,7 +208,7 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
     .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
 
     and an axis whose bound is below the best separation found so far minus ``margin`` (the
-    hysteresis ``eps_f``) can neither separate the pair nor be a manifold candidate, so its
+    widest hysteresis band, ``_KEEP_BAND eps_f``) can neither separate the pair nor be a manifold candidate, so its
     projections are skipped (``rin = rho_A + rho_B``). The test is first made without the square
     root, :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the threshold lowered
     by 1e-12 d (round-off), and without the cross product (unit directions:
@@ -677,9 +687,10 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
         o0, o1, o2 = _AXIS_EDGE, first_face, second_face
     else:
         o0, o1, o2 = first_face, second_face, _AXIS_EDGE
-    # an axis is a candidate within eps_f of the best separation, or within 2 eps_f if it is the
-    # previous normal: one band would let an axis at its edge flicker in and out from step to step
-    # (the manifold's normal and type flipping at every step, its force with them)
+    # an axis is a candidate within eps_f of the best separation, or within _KEEP_BAND eps_f if it
+    # is the previous normal: one band would let an axis at its edge flicker in and out from step
+    # to step (the manifold's normal and type flipping at every step, its force with them), and a
+    # narrow loop between the two bands pumps a sliding grain (module docstring)
     band_a = band_b = band_e = eps_f
     if hx != 0.0 or hy != 0.0 or hz != 0.0:
         ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2])
@@ -687,9 +698,9 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
         ce = abs(hx * ex + hy * ey + hz * ez)
         hint = max(ca, cb, ce)
         if hint > _HINT_COS:
-            band_a = 2.0 * eps_f if ca == hint else eps_f
-            band_b = 2.0 * eps_f if cb == hint and ca != hint else eps_f
-            band_e = 2.0 * eps_f if ce == hint and ca != hint and cb != hint else eps_f
+            band_a = _KEEP_BAND * eps_f if ca == hint else eps_f
+            band_b = _KEEP_BAND * eps_f if cb == hint and ca != hint else eps_f
+            band_e = _KEEP_BAND * eps_f if ce == hint and ca != hint and cb != hint else eps_f
         ca = ca if sfa >= sigma - band_a else 0.0
         cb = cb if sfb >= sigma - band_b else 0.0
         ce = ce if se >= sigma - band_e else 0.0
@@ -977,7 +988,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             else:
                 sat = _sat(rv, pv[j], pv[j + 1], pv[i], pv[i + 1], ax, pa[j], pa[j + 1], pa[i], pa[i + 1], dr, pd[j],
                            pd[j + 1], pd[i], pd[i + 1], half_start, half, axis_start, axis_support, kj, ki, ox, oy,
-                           oz, a, inradius[kj] + inradius[ki], eps_f, X, Y, pair_axis[q])
+                           oz, a, inradius[kj] + inradius[ki], _KEEP_BAND * eps_f, X, Y, pair_axis[q])
                 pair_axis[q] = sat[13]
                 if sat[0]:
                     continue
