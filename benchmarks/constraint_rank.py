@@ -104,13 +104,10 @@ def main(paths: list[str]) -> None:
         loaded = h[np.abs(h).sum(axis=1) > 0]
         singular = np.linalg.svd(loaded, compute_uv=False)
         rank = int((singular > 1e-9 * singular.max()).sum())
-        counted = 0
-        for m in np.unique(manifold):
-            cols = h[:, manifold == m]
-            counted += int(np.linalg.matrix_rank(cols, tol=1e-9 * np.abs(cols).max())) if cols.shape[1] > 1 else 1
+        weight, own_rank = self_stress_weights(h, manifold, packing.contacts.n_manifolds)
+        counted = int(own_rank.sum())
         print(f"{arg}: {packing.state.n} grains ({len(loaded) // 6} loaded), {h.shape[1]} force-bearing points, "
               f"global rank {rank}, type count {counted}, excess {counted - rank} ({(counted - rank) / rank:.1%})")
-        weight, own_rank = self_stress_weights(h, manifold, packing.contacts.n_manifolds)
         loaded_manifolds = np.unique(manifold)
         parallel = np.array([face_misalignment(packing, m) < PARALLEL_DEG for m in loaded_manifolds])
         w = weight[loaded_manifolds]

@@ -36,14 +36,12 @@ a touching pair's previous normal orders the manifold candidates (a previous edg
 that is also nearly a face axis selects the face: the faces have met), and the axis it matches
 stays a candidate within ``5 eps_f`` of the best separation (the others within ``eps_f``). With
 one band, an axis at its edge flickered in and out from step to step, the normal and the force of
-the manifold turning with it, and a pile at rest never balanced its forces. The width of the
-loop matters too: a manifold switching between two axes a fraction of a degree apart turns its
-normal at a place that depends on the direction of travel, so its force runs a loop in position
-that feeds a grain sliding to and fro (in a slot between parallel faces) energy at each swing,
-in proportion to the loop's width, while the end game's damping takes energy in proportion to
-the square of the swing. A loop of ``eps_f`` (the bands ``eps_f`` and ``2 eps_f``) kept such a
-grain swinging by 1e-3 d for tens of sqrt(d/g); with ``4 eps_f`` the swing needed to go round
-the loop is more than the loop can sustain, and the grain stops (benchmarks/README.md).
+the manifold turning with it, and a pile at rest never balanced its forces. The loop between
+the two bands is wide on purpose: a manifold switching between two axes a fraction of a degree
+apart turns its normal at a place that depends on the direction of travel, so its force feeds a
+grain sliding to and fro (in a slot between parallel faces) energy in proportion to the loop's
+width, while the end game's damping takes it in proportion to the square of the swing needed to
+go round the loop; a narrow loop kept such a grain swinging (docs/design-notes.md).
 
 Tolerances: ``eps_f`` (default 1e-3 d_min) is the feature band and the axis hysteresis; points
 closer than ``1e-3 eps_f`` are merged.
@@ -208,12 +206,12 @@ def _sat(rv, a0, a1, b0, b1, ax, aa0, aa1, ab0, ab1, dr, da0, da1, db0, db1, hal
     .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
 
     and an axis whose bound is below the best separation found so far minus ``margin`` (the
-    widest hysteresis band, ``_KEEP_BAND eps_f``) can neither separate the pair nor be a manifold candidate, so its
-    projections are skipped (``rin = rho_A + rho_B``). The test is first made without the square
-    root, :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the threshold lowered
-    by 1e-12 d (round-off), and without the cross product (unit directions:
-    :math:`c \\cdot o = e_A \\cdot (e_B \\times o)`, :math:`|c|^2 = 1 - (e_A \\cdot e_B)^2`), so most
-    pruned axes are never formed.
+    widest hysteresis band, ``_KEEP_BAND eps_f``) can neither separate the pair nor be a manifold
+    candidate, so its projections are skipped (``rin = rho_A + rho_B``). The test is first made
+    without the square root, :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the
+    threshold lowered by 1e-12 d (round-off), and without the cross product (unit directions:
+    :math:`c \\cdot o = e_A \\cdot (e_B \\times o)`, :math:`|c|^2 = 1 - (e_A \\cdot e_B)^2`), so
+    most pruned axes are never formed.
 
     ``cached`` is the axis that separated the pair at the previous call (code below, -1 if
     none): it is tried first, and a pair it still separates by more than ``alert`` costs one axis
