@@ -26,6 +26,8 @@ pair-list rebuilds that the motion triggers.
 Usage::
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_contact.py [--steps 30] [--skin 0.05] [--gsd PATH]
+
+``NUMBA_NUM_THREADS`` sets the narrow-phase threads (default: every CPU).
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ owes nothing to the separating-axis test or to GJK.
 
 from __future__ import annotations
 
+import importlib
 import itertools
 import math
 
@@ -798,6 +799,28 @@ def test_verlet_skin_gives_the_same_contacts_as_skin_zero(rng):
         previous = ref
     assert min(n_contacts) > state.n  # a dense configuration
     assert 2 <= verlet.n_builds < steps // 2  # the list was reused, and rebuilt when grains moved
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_threaded_narrow_phase_gives_the_contacts_of_one_thread(rng, monkeypatch, mixed):
+    """Row ranges tested by three threads, concatenated: the manifolds, points and axis caches of one
+    thread, step after step (with the previous step's normals), for pinacoids and a mix with spheres."""
+    detect_module = importlib.import_module("granpack.contact.detect")
+    monkeypatch.setattr(detect_module, "_PAIRS_PER_THREAD", 1)
+    state = dense_lattice(rng, n_side=7, layers=3, mixed=mixed)
+    one, three = Detector(skin=0.06, threads=1), Detector(skin=0.06, threads=3)
+    previous = None
+    for _ in range(5):
+        state.position = state.box.wrap(state.position + rng.normal(scale=0.004, size=state.position.shape))
+        ref = one.detect(state, ALERT, previous)
+        got = three.detect(state, ALERT, previous)
+        for name in ("body_i", "body_j", "shift", "normal", "ctype", "point_start", "point", "gap"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+        np.testing.assert_array_equal(three._pair_axis, one._pair_axis)
+        assert three.n_tested == one.n_tested
+        previous = ref
+    assert len(detect_module._row_ranges(three.verlet.pair_start, 3)) == 4  # three ranges were used
+    assert ref.n_manifolds > state.n
 
 
 # ---------------------------------------------------------------------------------------------

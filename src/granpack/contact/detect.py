@@ -4,8 +4,9 @@ API:
 
 - ``detect(state, alert, previous=None) -> ContactSet``: one-shot detection (the grid search is
   done every call).
-- ``Detector(skin=..., eps_f=None)``: the same with state kept between steps; ``skin > 0`` keeps
-  the broad-phase pair list (Verlet list) while no grain has moved more than ``skin / 2``.
+- ``Detector(skin=..., eps_f=None, threads=None)``: the same with state kept between steps; ``skin
+  > 0`` keeps the broad-phase pair list (Verlet list) while no grain has moved more than ``skin /
+  2``; ``threads`` narrow-phase threads (default: Numba's thread count).
   ``Detector.detect(state, alert, previous=None)`` has the signature of :func:`detect`; the
   counters ``n_candidates`` (pairs in the list), ``n_tested`` (pairs whose bounding spheres are
   within ``alert``, i.e. narrow-phase tests) and ``n_builds`` describe the last call.
@@ -28,6 +29,9 @@ displacement per step, docs/method/nscd.md#alert-distance-and-substeps); the box
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
+import numba
 import numpy as np
 
 from granpack.contact.broadphase import VerletList
@@ -37,6 +41,10 @@ from granpack.shapes import ShapeTable
 from granpack.state import ParticleState
 
 __all__ = ["Detector", "detect"]
+
+#: fewest candidate pairs per narrow-phase thread: below, one thread (a thread's hand-off costs
+#: tens of microseconds, about a hundred pair tests)
+_PAIRS_PER_THREAD = 2000
 
 
 def _edge_direction_index(shapes: ShapeTable) -> np.ndarray:
@@ -114,6 +122,10 @@ class Detector:
             grains move little per step (settling, static packings); see benchmarks/README.md.
         eps_f: feature band, rank tolerance and axis hysteresis, d; default ``1e-3 d_min``
             with ``d_min`` the smallest grain size of the shape table.
+        threads: narrow-phase threads; default ``numba.get_num_threads()`` (the CPUs, or
+            ``NUMBA_NUM_THREADS``). The candidate pairs are cut into that many row ranges of about
+            equal pair counts, each tested by one thread (the kernel releases the GIL); the
+            manifolds are the same as with one thread, in the same order.
 
     Attributes:
         n_candidates: candidate pairs in the list at the last call.
@@ -121,11 +133,15 @@ class Detector:
         n_builds: grid searches done so far.
     """
 
-    def __init__(self, skin: float = 0.0, eps_f: float | None = None):
+    def __init__(self, skin: float = 0.0, eps_f: float | None = None, threads: int | None = None):
         self.verlet = VerletList(skin)
         if eps_f is not None and not eps_f > 0:
             raise ValueError(f"eps_f must be > 0, got {eps_f}")
+        if threads is not None and threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
         self.eps_f = eps_f
+        self.threads = int(threads) if threads is not None else numba.get_num_threads()
+        self._pool: ThreadPoolExecutor | None = None
         self._tables: _Tables | None = None
         self._pair_axis: np.ndarray | None = None  # separating-axis cache, one code per candidate pair
         self.n_candidates = 0
@@ -176,16 +192,47 @@ class Detector:
                              shapes.direction_start, shapes.edge_directions)
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
-        out = narrow_phase(state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
-                           tables.half_start, tables.half, shapes.axis_start, tables.axis_support,
-                           self.verlet.pair_start, self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert,
-                           _reach(reach, state.n, alert), eps_f,
-                           tables.max_points, prev_i, prev_j, prev_n)
-        body_i, body_j, shift, normal, ctype, point_start, point, gap, tested = out
+        args = (state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
+                tables.half_start, tables.half, shapes.axis_start, tables.axis_support, self.verlet.pair_start,
+                self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
+                tables.max_points, prev_i, prev_j, prev_n)
+        bounds = _row_ranges(self.verlet.pair_start, self.threads)
+        if len(bounds) == 2:
+            parts = [narrow_phase(*args, 0, state.n)]
+        else:
+            if self._pool is None:
+                self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="granpack-narrow-phase")
+            jobs = [self._pool.submit(narrow_phase, *args, int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+            parts = [job.result() for job in jobs]
         self.n_candidates = int(self.verlet.pair_start[-1])
-        self.n_tested = int(tested)
-        return ContactSet(body_i=body_i, body_j=body_j, shift=shift, normal=normal, ctype=ctype,
-                          point_start=point_start, point=point, gap=gap, impulse=None)
+        self.n_tested = sum(int(part[8]) for part in parts)
+        return _concatenate(parts)
+
+
+def _row_ranges(pair_start: np.ndarray, threads: int) -> np.ndarray:
+    """Row boundaries ``0 = b_0 < ... < b_T = N`` cutting the candidate pairs (CSR over rows)
+    into ``T <= threads`` ranges of about equal pair counts; ``[0, N]`` when there are fewer than
+    ``_PAIRS_PER_THREAD`` pairs per thread."""
+    n = len(pair_start) - 1
+    total = int(pair_start[-1])
+    t = min(threads, total // _PAIRS_PER_THREAD, n)
+    if t <= 1:
+        return np.array([0, n], np.int64)
+    cuts = np.searchsorted(pair_start, total * np.arange(1, t) / t)
+    return np.unique(np.concatenate(([0], cuts, [n]))).astype(np.int64)
+
+
+def _concatenate(parts: list[tuple]) -> ContactSet:
+    """One :class:`ContactSet` from the narrow-phase outputs of consecutive row ranges."""
+    if len(parts) == 1:
+        body_i, body_j, shift, normal, ctype, point_start, point, gap, _ = parts[0]
+    else:
+        body_i, body_j, shift, normal, ctype, point, gap = (np.concatenate([p[k] for p in parts])
+                                                          for k in (0, 1, 2, 3, 4, 6, 7))
+        offsets = np.cumsum([0] + [len(p[6]) for p in parts[:-1]])
+        point_start = np.concatenate([[0]] + [p[5][1:] + off for p, off in zip(parts, offsets)]).astype(np.int64)
+    return ContactSet(body_i=body_i, body_j=body_j, shift=shift, normal=normal, ctype=ctype,
+                      point_start=point_start, point=point, gap=gap, impulse=None)
 
 
 def _reach(reach: np.ndarray | None, n: int, alert: float) -> np.ndarray:

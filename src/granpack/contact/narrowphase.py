@@ -862,8 +862,13 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 @jit
 def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support, pair_start,
-                 pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i, prev_j, prev_n):
-    """Contact manifolds of all candidate pairs and of the bottom wall.
+                 pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i, prev_j, prev_n, i0, i1):
+    """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
+
+    Rows are independent (a pair belongs to its row ``i``, the previous normals are looked up by
+    ``(i, j)``), so disjoint row ranges may be computed by concurrent threads (the kernel releases
+    the GIL) and their outputs concatenated in row order: the result is that of one call over all
+    rows.
 
     Args:
         position: ``(N, 3)`` centres (x, y wrapped into the cell), d.
@@ -888,6 +893,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             size plus one.
         prev_i, prev_j, prev_n: previous step's pairs (``i < j``, sorted by ``(i, j)``) and
             normals ``(Q, 3)``, for the temporal axis hysteresis of :func:`poly_poly`.
+        i0, i1: the rows computed (``0, N`` for all); ``pair_axis`` is written in these rows only.
 
     Returns:
         ``(body_i, body_j, shift, normal, ctype, point_start, point, gap, n_tested)``: the
@@ -895,8 +901,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         wall, ``j = -1``, first), and the number of pairs whose bounding spheres overlap within
         ``alert`` (narrow-phase tests).
     """
-    n = len(kind)
-    cap = pair_start[n] + n
+    cap = pair_start[i1] - pair_start[i0] + (i1 - i0)
     body_i = np.empty(cap, np.int64)
     body_j = np.empty(cap, np.int64)
     shift = np.empty((cap, 3))
@@ -924,9 +929,9 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
     m = 0
     npt = 0
     tested = 0
-    pp = 0
     nprev = len(prev_i)
-    for i in range(n):
+    pp = np.searchsorted(prev_i, i0)
+    for i in range(i0, i1):
         ki = kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
