@@ -409,3 +409,36 @@ def test_step_reach_gives_a_struck_grain_the_reach_of_the_grain_that_strikes_it(
     fast = 1.5 * (h * 4.0 + 0.5 * h * h)
     np.testing.assert_allclose(simulation.step_reach(state, base, h, 1, touching), [fast, fast, base / 2])
     np.testing.assert_allclose(simulation.step_reach(state, base, h, 1), [fast, base / 2, base / 2])
+
+
+def test_shake_adds_the_speed_in_a_random_direction_reproducibly():
+    state = simulation.initial_state(sphere_config(n=30))[0]
+    state.velocity[:] = 0.0
+    simulation.shake(state, 1e-3, np.random.default_rng([3, 0]))
+    np.testing.assert_allclose(np.linalg.norm(state.velocity, axis=1), 1e-3, rtol=1e-12)
+    assert abs(state.velocity.mean(axis=0)).max() < 5e-4  # directions spread over the sphere
+    again = simulation.initial_state(sphere_config(n=30))[0]
+    again.velocity[:] = 0.0
+    simulation.shake(again, 1e-3, np.random.default_rng([3, 0]))
+    np.testing.assert_array_equal(state.velocity, again.velocity)
+
+
+def test_shake_is_due_near_rest_at_most_once_per_interval():
+    config = load_config_dict({**sphere_config().model_dump(), "solver": {"shake_speed": 1e-3}})
+    report = type("Report", (), {"kinetic_energy": 1e-9})()
+    quiet = simulation._Counters(near_rest=True)
+    assert simulation._shake_due(config, quiet, report, 40.0)
+    assert not simulation._shake_due(sphere_config(), quiet, report, 40.0)  # shake_speed 0: never
+    assert not simulation._shake_due(config, simulation._Counters(near_rest=False), report, 40.0)
+    assert not simulation._shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-6})(), 40.0)
+    shaken = simulation._Counters(near_rest=True, last_shake=38.0)
+    assert not simulation._shake_due(config, shaken, report, 40.0)
+    assert simulation._shake_due(config, shaken, report, 43.0)
+
+
+def test_a_shaken_pile_comes_back_to_certified_rest(tmp_path):
+    """The shake is given (the summary counts it) and the pile still ends at certified rest."""
+    config = load_config_dict({**sphere_config().model_dump(), "solver": {"shake_speed": 1e-3}})
+    summary = run_packing(config, tmp_path / "shaken", progress=False)
+    assert summary["end_game"]["shakes"] >= 1
+    assert summary["status"] == STATUS_AT_REST and summary["equilibrium"]["kinetic_energy"] < 1e-8

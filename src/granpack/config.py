@@ -256,6 +256,20 @@ class SolverConfig(_Model):
         description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the end "
         "game starts (for good): with end_game = 'damping', the damping acts from then on.",
     )
+    shake_speed: _Number = Field(
+        default=0.0,
+        ge=0,
+        description="Speed of the shake, sqrt(g d): each time the pile comes near rest (kinetic criterion below "
+        "`shake_below`, at most once per `shake_interval`), every grain's velocity gets this speed more in a "
+        "random direction. A grain held by a contact that carries almost no force leaves it then instead of "
+        "tens of sqrt(d/g) later; 0: no shake.",
+    )
+    shake_below: _Number = Field(
+        default=1e-7, gt=0, description="Kinetic criterion (d^3 P) below which the pile is shaken (`shake_speed`)."
+    )
+    shake_interval: _Number = Field(
+        default=5.0, gt=0, description="Least simulated time between two shakes, sqrt(d/g)."
+    )
 
 
 class EquilibriumConfig(_Model):

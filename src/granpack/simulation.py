@@ -140,6 +140,8 @@ class _Counters:
     correction_iterations: int = 0  # NLGS sweeps of the position corrections
     correction_energy: float = 0.0
     end_game: bool = False  # the end game's damping has started (once set, for good)
+    shakes: int = 0  # shakes given (solver.shake_speed)
+    last_shake: float | None = None  # simulated time of the last shake, sqrt(d/g)
     last_step: float = 0.0  # the (sub)step of the last solve, sqrt(d/g) (0: none yet)
     damped_energy: float = 0.0
     split_steps: int = 0  # steps split into substeps (alert distance above the cell's ceiling)
@@ -541,6 +543,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.end_game = counters.end_game or (
                     config.solver.end_game == "damping" and report.kinetic_energy < config.solver.damping_below)
                 counters.near_rest = counters.near_rest or report.kinetic_energy < config.solver.tolerance_below
+                if _shake_due(config, counters, report, state.time):
+                    shake(state, config.solver.shake_speed, np.random.default_rng([config.seed, counters.shakes]))
+                    counters.shakes += 1
+                    counters.last_shake = state.time
+                    counters.passes = 0
                 counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                 counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
                 _timeline_row(counters, state, contacts, report, tolerance)
@@ -573,6 +580,28 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     return summary
+
+
+def _shake_due(config: RunConfig, c: _Counters, report: EquilibriumReport, time_now: float) -> bool:
+    """Whether this check shakes the pile: shakes on, the fine tolerance in use, the kinetic criterion
+    below ``solver.shake_below`` and ``solver.shake_interval`` past the last shake."""
+    s = config.solver
+    return (s.shake_speed > 0 and c.near_rest and report.kinetic_energy < s.shake_below
+            and (c.last_shake is None or time_now - c.last_shake >= s.shake_interval - 1e-9))
+
+
+def shake(state: ParticleState, speed: float, rng: np.random.Generator) -> None:
+    """Add ``speed`` (sqrt(g d)) in a random direction (uniform on the sphere) to every grain's velocity.
+
+    Why: a frictionless pile near rest holds grains by contacts that carry almost no force; such a
+    grain leaves its contact and slides to the next one tens of sqrt(d/g) later, setting off a burst
+    of rearrangements (benchmarks/README.md, ninth session). A small kick makes those grains leave
+    at once, while the grains held firmly return to rest within a few sqrt(d/g) under the end game's
+    damping.
+    """
+    direction = rng.normal(size=(state.n, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    state.velocity += speed * direction
 
 
 def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
@@ -638,7 +667,8 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         },
         "split_steps": c.split_steps,
         "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
-        "end_game": {"mode": config.solver.end_game, "started": c.end_game, "kinetic_energy_removed": c.damped_energy},
+        "end_game": {"mode": config.solver.end_game, "started": c.end_game, "kinetic_energy_removed": c.damped_energy,
+                     "shakes": c.shakes},
         "equilibrium": report.as_dict(),
         "final": {  # the last state; total kinetic energy in rho g d^4 (the per-grain criterion: "equilibrium")
             "total_kinetic_energy": kinetic_energy(state),
