@@ -584,9 +584,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
 def _shake_due(config: RunConfig, c: _Counters, report: EquilibriumReport, time_now: float) -> bool:
     """Whether this check shakes the pile: shakes on, the fine tolerance in use, the kinetic criterion
-    below ``solver.shake_below`` and ``solver.shake_interval`` past the last shake."""
+    below ``solver.shake_below``, ``solver.shake_interval`` past the last shake, and the check failed
+    (a pile that meets the criteria is counting its window towards rest: a shake would restart it)."""
     s = config.solver
-    return (s.shake_speed > 0 and c.near_rest and report.kinetic_energy < s.shake_below
+    return (s.shake_speed > 0 and c.near_rest and not report.passed and report.kinetic_energy < s.shake_below
             and (c.last_shake is None or time_now - c.last_shake >= s.shake_interval - 1e-9))
 
 
