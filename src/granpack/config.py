@@ -259,8 +259,8 @@ class SolverConfig(_Model):
     shake_speed: _Number = Field(
         default=0.0,
         ge=0,
-        description="Speed of the shake, sqrt(g d): each time the pile comes near rest (kinetic criterion below "
-        "`shake_below`, at most once per `shake_interval`), every grain's velocity gets this speed more in a "
+        description="Speed of the shake, sqrt(g d): each time the pile comes near rest but fails the criteria (kinetic "
+        "criterion below `shake_below`, at most once per `shake_interval`), every grain's velocity gets this speed more in a "
         "random direction. A grain held by a contact that carries almost no force leaves it then instead of "
         "tens of sqrt(d/g) later; 0: no shake.",
     )
