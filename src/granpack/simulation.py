@@ -547,7 +547,6 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                     shake(state, config.solver.shake_speed, np.random.default_rng([config.seed, counters.shakes]))
                     counters.shakes += 1
                     counters.last_shake = state.time
-                    counters.passes = 0
                 counters.wall_seconds = wall_before + time.perf_counter() - wall_start
                 counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
                 _timeline_row(counters, state, contacts, report, tolerance)
