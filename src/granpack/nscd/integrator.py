@@ -92,9 +92,7 @@ class StepParameters:
             rest below about 5e-4 d.
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
         warm_trend: factor ``a`` of the warm start's extrapolation of each impulse along its
-            change over the previous step, ``P + a ΔP`` (:mod:`granpack.nscd.warmstart`), after
-            a step whose solve took more than one check (a quiet step's changes are the noise
-            of its solve: extrapolated, they would keep the pile from rest); 0: none.
+            change over the previous step, ``P + a ΔP`` (:mod:`granpack.nscd.warmstart`); 0: none.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
         correction_step: largest translation of a body by one position correction, d.
@@ -309,7 +307,7 @@ def advance(
         state.omega *= factor
     state.time += h
     contacts.impulse = problem.world_impulse(impulse)
-    if params.warm_trend > 0 and info.iterations > params.check_every:
+    if params.warm_trend > 0:
         contacts.impulse_change = np.where(has_warm[:, None], contacts.impulse - problem.world_impulse(r0), 0.0)
     solver_seconds = time.perf_counter() - t0
     return contacts, StepInfo(
