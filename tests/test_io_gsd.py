@@ -40,14 +40,6 @@ def test_round_trip_pinacoids_is_exact(tmp_path, rng):
         assert type(s) is type(t) and isinstance(t, Pinacoid)
         np.testing.assert_array_equal(s.vertices, t.vertices)
     np.testing.assert_array_equal(packing.state.shapes.volume, back.state.shapes.volume)
-    assert back.contacts.impulse_change is None
-
-
-def test_round_trip_keeps_the_impulse_trend(tmp_path, rng):
-    packing = random_pinacoids(50, rng)
-    packing.contacts.impulse_change = rng.standard_normal((packing.contacts.n_points, 3))
-    back = read_packing(write_packing(tmp_path / "checkpoint.gsd", packing))
-    np.testing.assert_array_equal(back.contacts.impulse_change, packing.contacts.impulse_change)
 
 
 def test_round_trip_spheres_and_polyhedra(tmp_path):

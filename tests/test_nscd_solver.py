@@ -20,7 +20,6 @@ from granpack.nscd import (
     solve,
     world_inverse_inertia,
 )
-from granpack.nscd.warmstart import warm_impulses
 from granpack.rotations import quat_to_matrix, random_quaternions
 from granpack.shapes import Pinacoid
 from granpack.state import ParticleState
@@ -149,48 +148,6 @@ def test_warm_start_converges_on_the_first_check():
     _, hot = run(state, params, pairs, [0], 1, warm=warm)
     assert hot[0].n_warm == n
     assert hot[0].iterations == params.check_every < cold[0].iterations
-
-
-@pytest.mark.parametrize("trend", [0.0, 0.5, 1.0])
-def test_warm_start_extrapolates_each_impulse_along_its_trend(trend):
-    # two spheres on the wall, resting; the old step's wall impulses and their changes are given by hand
-    state = sphere_state([[2.0, 2.0, 0.5], [5.0, 5.0, 0.5]])
-    contacts = sphere_contacts(state, [], [0, 1])
-    old = sphere_contacts(state, [], [0, 1])
-    old.impulse = np.array([[0.1, 0.0, 2.0], [0.0, 0.0, 3.0]])
-    old.impulse_change = np.array([[0.0, 0.0, 0.4], [0.0, 0.0, -4.0]])
-    tangent = np.zeros((2, 2, 3))
-    tangent[:, 0, 0], tangent[:, 1, 1] = 1.0, 1.0
-    rot = np.tile(np.eye(3), (2, 1, 1))
-    zero = np.zeros((2, 3))
-    r0, has_warm = warm_impulses(old, contacts, tangent, state.position, rot, zero, zero, H, (8.0, 8.0), 0.05, 1.0, trend)
-    assert has_warm.tolist() == [True, True]
-    # normal part P.n + a dP.n, never negative (the second one would be 3 - 4 a); tangential part as it
-    # is (friction 1: inside the disc)
-    np.testing.assert_allclose(r0[:, 0], [2.0 + 0.4 * trend, max(0.0, 3.0 - 4.0 * trend)], rtol=1e-15)
-    np.testing.assert_allclose(r0[:, 1], [0.1, 0.0], rtol=1e-15)
-    old.impulse_change = None  # no trend recorded: the old impulse as it is, whatever the factor
-    r0, _ = warm_impulses(old, contacts, tangent, state.position, rot, zero, zero, H, (8.0, 8.0), 0.05, 0.0, trend)
-    np.testing.assert_allclose(r0[:, 0], [2.0, 3.0], rtol=1e-15)
-
-
-def test_trend_is_the_change_from_the_warm_start_and_leaves_a_resting_column_exact():
-    n = 5
-    state = sphere_state([[2.0, 2.0, 0.5 + k] for k in range(n)])
-    params = StepParameters(time_step=H, tolerance=1e-10, max_iterations=20000, warm_trend=1.0)
-    pairs = [(k + 1, k, (0, 0, 0)) for k in range(n - 1)]
-    contacts, infos = run(state, params, pairs, [0], 1)
-    # first step: no warm start, so no trend
-    np.testing.assert_array_equal(contacts.impulse_change, 0.0)
-    contacts, infos = run(state, params, pairs, [0], 30, warm=contacts)
-    # at rest the loads no longer change: the trend vanishes and the forces are the exact weights
-    assert np.abs(contacts.impulse_change).max() < 1e-9 * state.mass[0] * H
-    force = contacts.impulse[:, 2] / H
-    np.testing.assert_allclose(force[: n - 1], state.mass[0] * np.arange(n - 1, 0, -1), rtol=1e-8)
-    assert infos[-1].n_warm == n
-    assert StepParameters(time_step=H).warm_trend == 0.0
-    with pytest.raises(ValueError, match="warm_trend"):
-        StepParameters(warm_trend=1.5)
 
 
 @pytest.mark.parametrize("restitution", [0.0, 0.5, 1.0])

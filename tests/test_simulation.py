@@ -135,10 +135,8 @@ class Killed(BaseException):
     """Stands for SIGKILL: nothing after it runs (not even ``except Exception`` handlers)."""
 
 
-@pytest.mark.parametrize("trend", [0.0, 1.0])
-def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch, trend):
+def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
     config = sphere_config(n=40, max_time=2.0)
-    config = config.model_copy(update={"solver": config.solver.model_copy(update={"warm_trend": trend})})
     whole = run_packing(config, tmp_path / "whole", progress=False)
 
     calls = {"n": 0}

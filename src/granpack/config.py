@@ -242,14 +242,6 @@ class SolverConfig(_Model):
         "momentum of nonsmooth nonlinear conjugate gradients to each symmetric pair of sweeps (Gauss-Seidel "
         "alone carries a load down a pile one layer per sweep); 'none': plain NLGS.",
     )
-    warm_trend: _Number = Field(
-        default=0.0,
-        ge=0,
-        le=1,
-        description="Warm start along the trend: each contact impulse starts from its last value plus this "
-        "fraction of its change over the last step (0: the last value). A creeping pile shifts its loads "
-        "steadily, and the extrapolated start leaves the sweeps less to carry through the stack.",
-    )
     end_game: Literal["damping", "none"] = Field(
         default="damping",
         description="How a collapsed pile is brought to rest: 'damping' scales every grain's velocity by "

@@ -167,7 +167,6 @@ def step_parameters(config: RunConfig) -> StepParameters:
         alert=config.resolved_alert_distance, overlap_slop=s.overlap_slop,
         recovery_slop=s.recovery_slop, recovery_rate=s.recovery_rate, recovery_speed=s.recovery_speed,
         parallel_points=s.parallel_points if s.parallel_points > 0 else 2**62, nncg=s.acceleration == "nncg",
-        warm_trend=s.warm_trend,
     )
 
 

@@ -47,9 +47,6 @@ class ContactSet:
         gap: ``(P,)`` signed gaps, d.
         impulse: ``(P, 3)`` world impulse on body i over the last step (set by the solver;
             ``None`` before solving); the force is ``impulse / time_step``.
-        impulse_change: ``(P, 3)`` world impulse minus the warm start the step was solved from
-            (zero where a point had no warm start; set by the solver, ``None`` before): the trend
-            the next step's warm start may extrapolate (:mod:`granpack.nscd.warmstart`).
     """
 
     body_i: np.ndarray
@@ -61,7 +58,6 @@ class ContactSet:
     point: np.ndarray
     gap: np.ndarray
     impulse: np.ndarray | None = None
-    impulse_change: np.ndarray | None = None
 
     @classmethod
     def empty(cls) -> "ContactSet":

@@ -15,9 +15,7 @@ One frame per file. Layout:
 - Per-particle logs (OVITO shows them as properties): ``log/particles/population`` (int64) and
   ``log/particles/omega`` (float64, body frame).
 - Contacts (:class:`~granpack.contact.ContactSet` arrays, float64/int64):
-  ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``, and
-  ``log/contacts/impulse_change`` when the run's warm start extrapolates impulses (so that a
-  resumed run continues bit for bit).
+  ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``.
 - Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}`` and
   JSON text stored as uint8 arrays: ``log/granpack/shapes`` (the shape specs that rebuild the
   :class:`~granpack.shapes.ShapeTable` exactly), ``log/granpack/population_names``,
@@ -126,8 +124,6 @@ def _frame(packing: Packing) -> gsd.hoomd.Frame:
     log["particles/omega"] = state.omega.astype(np.float64)
     for name in _CONTACT_FIELDS:
         log[f"contacts/{name}"] = np.ascontiguousarray(getattr(contacts, name))
-    if contacts.impulse_change is not None:
-        log["contacts/impulse_change"] = np.ascontiguousarray(contacts.impulse_change)
     log["granpack/format"] = np.array([FORMAT_VERSION], dtype=np.int64)
     log["granpack/lateral_size"] = np.array([box.lx, box.ly])
     log["granpack/time"] = np.array([state.time])
@@ -250,8 +246,6 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
         point=arrays["point"].astype(np.float64).reshape(p, 3),
         gap=arrays["gap"].astype(np.float64).reshape(p),
         impulse=arrays["impulse"].astype(np.float64).reshape(p, 3),
-        impulse_change=(np.asarray(log["contacts/impulse_change"], dtype=np.float64).reshape(p, 3)
-                        if "contacts/impulse_change" in log else None),
     )
     if contacts.point_start[-1] != p:
         raise ValueError("contact point offsets do not match the number of points")

@@ -91,8 +91,6 @@ class StepParameters:
             ``0`` disables the correction. The default (5e-4 d) keeps every overlap of a pile at
             rest below about 5e-4 d.
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
-        warm_trend: factor ``a`` of the warm start's extrapolation of each impulse along its
-            change over the previous step, ``P + a ΔP`` (:mod:`granpack.nscd.warmstart`); 0: none.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
         correction_step: largest translation of a body by one position correction, d.
@@ -120,7 +118,6 @@ class StepParameters:
     alert: float = 0.05
     overlap_slop: float = 5e-4
     warm_tolerance: float = 0.05
-    warm_trend: float = 0.0
     correction_sweeps: int = 200
     correction_step: float = 1e-3
     recovery_slop: float = 5e-4
@@ -141,8 +138,6 @@ class StepParameters:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if not self.alert >= 0 or not self.overlap_slop >= 0 or not self.warm_tolerance >= 0:
             raise ValueError("alert, overlap_slop and warm_tolerance must be >= 0")
-        if not 0.0 <= self.warm_trend <= 1.0:
-            raise ValueError(f"warm_trend must be in [0, 1], got {self.warm_trend}")
         if self.correction_sweeps < 1:
             raise ValueError(f"correction_sweeps must be >= 1, got {self.correction_sweeps}")
         if not self.recovery_slop >= 0 or not self.recovery_rate >= 0 or not self.recovery_speed >= 0:
@@ -276,11 +271,10 @@ def advance(
         recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
-    r0, has_warm = warm_impulses(
+    r0, n_warm = warm_impulses(
         warm, contacts, problem.tangent, pr.x_tt, pr.rot_tt, state.velocity, state.omega, h,
-        (state.box.lx, state.box.ly), tol_warm, params.friction, params.warm_trend,
+        (state.box.lx, state.box.ly), tol_warm, params.friction,
     )
-    n_warm = int(has_warm.sum())
     if warm_time_step is not None and warm_time_step != h:
         r0 *= h / float(warm_time_step)
     problem = replace(problem, initial_impulse=r0)
@@ -307,8 +301,6 @@ def advance(
         state.omega *= factor
     state.time += h
     contacts.impulse = problem.world_impulse(impulse)
-    if params.warm_trend > 0:
-        contacts.impulse_change = np.where(has_warm[:, None], contacts.impulse - problem.world_impulse(r0), 0.0)
     solver_seconds = time.perf_counter() - t0
     return contacts, StepInfo(
         iterations=info.iterations,

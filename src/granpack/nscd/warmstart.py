@@ -21,12 +21,6 @@ position correction moved bodies by far less than the tolerance and is ignored h
 point is used at most once (nearest first). The old world impulse ``P`` (on the old candidate;
 sign flipped if the roles swapped) gives the local impulse ``(max(0, P·n), P·t, P·s)``, the
 tangential part clipped to the friction disc ``μ r_n``.
-
-With a trend factor ``a > 0`` the old impulse is first extrapolated along its change over the
-previous step, ``P + a ΔP`` (``ΔP``: the old step's impulse minus its own warm start, zero for a
-point that had none). A pile that creeps shifts its loads steadily from step to step; the
-extrapolation starts the solve nearer to where the loads are going, so it carries less of a
-correction through the whole stack (docs: Method > NSCD, warm start).
 """
 
 from __future__ import annotations
@@ -56,9 +50,9 @@ def _rotate_body(phi, x):
 
 @jit
 def _warm_kernel(
-    old_i, old_j, old_start, old_point, old_impulse, old_change, trend,
+    old_i, old_j, old_start, old_point, old_impulse,
     new_i, new_j, new_start, new_point, normal, tangent,
-    x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out, has_warm,
+    x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out,
 ):
     n_bodies = x_tt.shape[0]
     # CSR of old manifolds per body (each manifold listed under both of its particles)
@@ -77,6 +71,7 @@ def _warm_kernel(
             listed[fill[old_j[m]]] = m
             fill[old_j[m]] += 1
     used = np.zeros(old_point.shape[0], np.bool_)
+    matched = 0
     tol2 = tol * tol
     for m in range(new_i.shape[0]):
         i, j = new_i[m], new_j[m]
@@ -132,10 +127,8 @@ def _warm_kernel(
             if best < 0:
                 continue
             used[best] = True
-            has_warm[k] = True
-            p0 = sign * (old_impulse[best, 0] + trend * old_change[best, 0])
-            p1 = sign * (old_impulse[best, 1] + trend * old_change[best, 1])
-            p2 = sign * (old_impulse[best, 2] + trend * old_change[best, 2])
+            matched += 1
+            p0, p1, p2 = sign * old_impulse[best, 0], sign * old_impulse[best, 1], sign * old_impulse[best, 2]
             rn = max(0.0, p0 * normal[m, 0] + p1 * normal[m, 1] + p2 * normal[m, 2])
             rt = p0 * tangent[k, 0, 0] + p1 * tangent[k, 0, 1] + p2 * tangent[k, 0, 2]
             rs = p0 * tangent[k, 1, 0] + p1 * tangent[k, 1, 1] + p2 * tangent[k, 1, 2]
@@ -146,6 +139,7 @@ def _warm_kernel(
                 rt *= scale
                 rs *= scale
             out[k, 0], out[k, 1], out[k, 2] = rn, rt, rs
+    return matched
 
 
 def warm_impulses(
@@ -160,8 +154,7 @@ def warm_impulses(
     periods: tuple[float, float],
     tolerance: float,
     friction: float,
-    trend: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, int]:
     """Local warm-start impulses of the new contact points from the previous step's solution.
 
     Args:
@@ -175,28 +168,20 @@ def warm_impulses(
         periods: ``(lx, ly)``, d.
         tolerance: matching distance in the body frame, d.
         friction: μ (the tangential part is clipped to ``μ r_n``).
-        trend: factor ``a`` of the extrapolation ``P + a ΔP`` (0: the old impulse as it is;
-            ignored where ``previous.impulse_change`` is ``None``).
 
     Returns:
-        ``((P, 3) local impulses, (P,) bool: the point matched an old one)``.
+        ``((P, 3) local impulses, number of points matched)``.
     """
     p = contacts.n_points
     out = np.zeros((p, 3))
-    has_warm = np.zeros(p, np.bool_)
     if previous is None or previous.impulse is None or previous.n_points == 0 or p == 0:
-        return out, has_warm
-    change = previous.impulse_change
-    if change is None or trend == 0.0:
-        change, trend = np.zeros((previous.n_points, 3)), 0.0
-    _warm_kernel(
+        return out, 0
+    matched = _warm_kernel(
         np.ascontiguousarray(previous.body_i, dtype=np.int64),
         np.ascontiguousarray(previous.body_j, dtype=np.int64),
         np.ascontiguousarray(previous.point_start, dtype=np.int64),
         np.ascontiguousarray(previous.point, dtype=np.float64).reshape(-1, 3),
         np.ascontiguousarray(previous.impulse, dtype=np.float64).reshape(-1, 3),
-        np.ascontiguousarray(change, dtype=np.float64).reshape(-1, 3),
-        float(trend),
         np.ascontiguousarray(contacts.body_i, dtype=np.int64),
         np.ascontiguousarray(contacts.body_j, dtype=np.int64),
         np.ascontiguousarray(contacts.point_start, dtype=np.int64),
@@ -213,6 +198,5 @@ def warm_impulses(
         float(tolerance),
         float(friction),
         out,
-        has_warm,
     )
-    return out, has_warm
+    return out, int(matched)
