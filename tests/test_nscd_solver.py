@@ -235,22 +235,57 @@ def test_nncg_solves_a_tall_stack_to_the_same_velocities_in_fewer_sweeps():
 
 
 def test_two_thread_sweeps_solve_the_same_problem():
-    """The two-slab NLGS (points split by the halves of the cell their bodies lie in, the two
-    halves swept at once, the pairs across them after) converges to the same solution as the
-    sequential sweeps: a 4 x 4 x 3 lattice of spheres with lateral contacts across the periodic
-    boundary and the mid-plane, every point in one of the three groups."""
+    """The two-part NLGS (points split by the part of the pile, lower or upper, their bodies lie
+    in; the two parts swept at once, the pairs across them after) converges to the velocities of
+    the sequential sweeps, with and without the NNCG momentum: a 4 x 4 x 4 lattice of spheres,
+    every point in one of the three groups."""
     from granpack.nscd.integrator import _sides
     from granpack.nscd.nlgs import _halves
 
-    state, pr, contacts = _lattice_problem()
+    state, pr, contacts = _lattice_problem(layers=4)
     problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
-                       side=_sides(pr.x_tt, state.box.lx))
+                       side=_sides(pr.x_tt, contacts.point[:, 2]))
     order, bounds = _halves(problem)
-    assert np.all(np.diff(bounds) > 0)  # both halves and the pairs across them
-    options = NLGSOptions(tolerance=1e-12, max_iterations=200000)
-    r_seq, info_seq = solve(problem, options)
-    r_par, info_par = solve(problem, NLGSOptions(tolerance=1e-12, max_iterations=200000, parallel_points=1))
-    assert info_seq.converged and info_par.converged
-    assert problem.residual(r_par) < 1e-10
-    v_seq, v_par = problem.velocity(r_seq), problem.velocity(r_par)
-    np.testing.assert_allclose(v_par, v_seq, atol=1e-10)  # V^{n+1} is unique (impulses need not be)
+    assert np.all(np.diff(bounds) > 0)  # both parts and the pairs across them
+    for nncg in (False, True):
+        r_seq, info_seq = solve(problem, NLGSOptions(tolerance=1e-12, max_iterations=200000, nncg=nncg))
+        r_par, info_par = solve(problem, NLGSOptions(tolerance=1e-12, max_iterations=200000, parallel_points=1,
+                                                     nncg=nncg))
+        assert info_seq.converged and info_par.converged
+        assert problem.residual(r_par) < 1e-10
+        v_seq, v_par = problem.velocity(r_seq), problem.velocity(r_par)
+        np.testing.assert_allclose(v_par, v_seq, atol=1e-10)  # V^{n+1} is unique (impulses need not be)
+
+
+def test_two_part_sweeps_do_not_depend_on_the_thread_count():
+    """The two parts share no body, so one thread sweeping them in turn gives the impulses of two
+    threads sweeping them at once, bit for bit (a run is the same on any machine)."""
+    import numba
+
+    from granpack.nscd.integrator import _sides
+
+    state, pr, contacts = _lattice_problem(layers=6)
+    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
+                       side=_sides(pr.x_tt, contacts.point[:, 2]))
+    options = NLGSOptions(tolerance=1e-6, max_iterations=50, parallel_points=1, nncg=True)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        r_one, info_one = solve(problem, options)
+    finally:
+        numba.set_num_threads(threads)
+    r_two, info_two = solve(problem, options)
+    assert info_one.iterations == info_two.iterations == 50  # stopped mid-way: the iterates, not a limit
+    np.testing.assert_array_equal(r_one, r_two)
+    assert numba.get_num_threads() == threads
+
+
+def test_sides_split_the_bodies_at_the_median_height_of_the_points():
+    """Bodies whose centre is at or above the median height of the contact points are side 1;
+    the wall row is side 0."""
+    from granpack.nscd.integrator import _sides
+
+    position = np.array([[0.0, 0.0, z] for z in (0.5, 1.5, 2.5, 3.5)])
+    side = _sides(position, np.array([0.0, 1.0, 2.0, 3.0, 3.0]))  # median 2.0
+    np.testing.assert_array_equal(side, [0, 0, 1, 1, 0])
+    np.testing.assert_array_equal(_sides(position, np.zeros(0)), [0, 0, 0, 0, 0])

@@ -230,11 +230,13 @@ class SolverConfig(_Model):
         "step was two thirds of the cost.",
     )
     parallel_points: int = Field(
-        default=0,
+        default=2000,
         ge=0,
-        description="Contact problems of at least this many points are swept by two threads (the two "
-        "halves of the cell at once); 0: one thread. Only worth it on an otherwise idle machine with "
-        "2 cores or more: each sweep ends on a barrier, which waits for a descheduled thread.",
+        description="Contact problems of at least this many points are swept by two threads: the lower "
+        "and the upper part of the pile at once, then the points across them. The order of the sweeps, "
+        "and so the run, is the same whatever the number of threads (NUMBA_NUM_THREADS=1: one thread "
+        "does both parts in turn); 0: never split. Each sweep ends on a barrier, so two runs sharing "
+        "two cores should each have NUMBA_NUM_THREADS=1.",
     )
     acceleration: Literal["nncg", "none"] = Field(
         default="nncg",

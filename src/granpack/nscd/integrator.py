@@ -102,8 +102,8 @@ class StepParameters:
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
             :mod:`granpack.simulation`).
         parallel_points: frictionless problems of at least this many points are swept by two
-            threads, the two halves ``x < L_x/2`` and ``x >= L_x/2`` of the cell at once
-            (:func:`granpack.nscd.nlgs.solve`); the default never does.
+            threads, the lower and the upper part of the pile at once (:func:`_sides`,
+            :func:`granpack.nscd.nlgs.solve`); the default never does.
         nncg: the velocity solve and the position correction use the NNCG momentum
             (:mod:`granpack.nscd.nlgs`).
     """
@@ -267,7 +267,7 @@ def advance(
     problem = assemble(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
         restitution=params.restitution, friction=params.friction,
-        side=_sides(pr.x_tt, state.box.lx) if contacts.n_points >= params.parallel_points else None,
+        side=_sides(pr.x_tt, contacts.point[:, 2]) if contacts.n_points >= params.parallel_points else None,
         recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
@@ -318,10 +318,17 @@ def advance(
     )
 
 
-def _sides(position: np.ndarray, lx: float) -> np.ndarray:
-    """``(N + 1,)`` 0 for the bodies in the half ``x < L_x/2`` of the cell, 1 for the others (wall: 0)."""
+def _sides(position: np.ndarray, point_height: np.ndarray) -> np.ndarray:
+    """``(N + 1,)`` 0 for the bodies whose centre lies below the median height of the contact
+    points, 1 for the others (wall: 0).
+
+    The two parts of the pile then hold about as many points each, and a load on its way down
+    crosses from one to the other once: a split by height leaves the sweeps as they were, where
+    one by the halves of the cell in x doubled them (loads zigzag across a vertical plane).
+    """
     side = np.zeros(len(position) + 1, np.int64)
-    side[:-1] = position[:, 0] >= 0.5 * lx
+    if len(point_height):
+        side[:-1] = position[:, 2] >= np.median(point_height)
     return side
 
 

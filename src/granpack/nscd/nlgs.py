@@ -39,6 +39,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from granpack._numba import jit, prange
@@ -84,7 +85,7 @@ class NLGSOptions:
             (:func:`_solve_frictionless_halves`; the result does not depend on the number of
             threads Numba has); smaller ones by one (the threads' start-up would cost more than
             they save).
-        nncg: a frictionless problem swept by one thread is solved with the NNCG momentum
+        nncg: frictionless problems are solved with the NNCG momentum
             (:func:`_solve_frictionless`).
     """
 
@@ -241,15 +242,37 @@ def _momentum(body, data, r, v, before, direction, previous):
     """Numba: the NNCG step of :func:`_solve_frictionless` after a pair of sweeps that took ``before``
     to ``r`` (in place on ``r``, ``v``, ``before``, ``direction``); returns ``Σ W g²`` of this pair."""
     p = r.shape[0]
+    norm = _momentum_norm(data, r, before, 0, p)
+    beta = _momentum_factor(norm, previous, direction)
+    _momentum_update(body, data, r, v, before, direction, beta, 0, p)
+    return norm
+
+
+@jit(inline="always")
+def _momentum_norm(data, r, before, start, stop):
+    """Numba: ``Σ W g²`` over points ``start..stop-1``, ``g = r - before`` (the last pair of sweeps' change)."""
     norm = 0.0
-    for k in range(p):
+    for k in range(start, stop):
         g = r[k] - before[k]
         norm += data[k, WNN] * g * g
+    return norm
+
+
+@jit(inline="always")
+def _momentum_factor(norm, previous, direction):
+    """Numba: NNCG's ``β = norm / previous``; a ``β > 1`` restarts (``direction`` zeroed, ``β = 0``)."""
     beta = norm / previous if previous > 0.0 else 0.0
     if beta > 1.0:
         direction[:] = 0.0
         beta = 0.0
-    for k in range(p):
+    return beta
+
+
+@jit(inline="always")
+def _momentum_update(body, data, r, v, before, direction, beta, start, stop):
+    """Numba: ``r <- max(0, r + β p)`` (velocities following), ``p <- β p + g``, ``before <- r`` on
+    points ``start..stop-1``."""
+    for k in range(start, stop):
         g = r[k] - before[k]
         if beta > 0.0:
             r_new = r[k] + beta * direction[k]
@@ -261,34 +284,54 @@ def _momentum(body, data, r, v, before, direction, previous):
                 _push(data[k], body[k, 0], body[k, 1], dr, v)
         direction[k] = beta * direction[k] + g
         before[k] = r[k]
-    return norm
 
 
 @jit(parallel=True)
-def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterations, check_every):
-    """Numba: NLGS sweeps with the points in three groups: two that share no body (swept by two
-    threads at once) and the rest (swept after them); same contract as :func:`_solve_frictionless`.
+def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg):
+    """Numba: the sweeps of :func:`_solve_frictionless` (same contract) with the points in three
+    groups: the lower and the upper part of the pile, which share no body and are swept by two
+    threads at once, and the points across them.
 
-    ``bounds`` ``(4,)``: the groups are the points ``bounds[g]..bounds[g+1]-1``, g = 0, 1, 2. The
-    wall (row N, zero inverse mass) may appear in both parallel groups: its velocity stays 0.
+    A forward sweep takes the two parts at once, then the points across; a backward sweep the
+    points across (backwards), then the two parts (backwards): the sweeps, and the NNCG momentum,
+    are those of :func:`_solve_frictionless` on the points in the order lower, upper, across,
+    whatever the number of threads. ``bounds`` ``(4,)``: group g is the points
+    ``bounds[g]..bounds[g+1]-1``. The wall (row N, zero inverse mass) may appear in both parts:
+    its velocity stays 0.
     """
     p = r.shape[0]
     if p == 0:
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros((3, 6))
+    norms = np.zeros(3)
+    before = r.copy() if nncg else np.zeros(0)
+    direction = np.zeros(p if nncg else 0)
+    previous = np.inf
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         forward = it % 2 == 0
         sums[:, :] = 0.0
+        if not forward:
+            _sweep(body, data, offset, r, v, bounds[2], bounds[3], False, check, sums[2])
         for g in prange(2):
             _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, check, sums[g])
-        _sweep(body, data, offset, r, v, bounds[2], bounds[3], forward, check, sums[2])
+        if forward:
+            _sweep(body, data, offset, r, v, bounds[2], bounds[3], True, check, sums[2])
         if check:
             error = _quad_error(sums[:, 0].sum(), sums[:, 1].sum(), sums[:, 2].sum(), sums[:, 3].sum(),
                                 sums[:, 4].sum(), sums[:, 5].sum())
             if error < tol:
                 return it + 1, error, True
+        if nncg and not forward:
+            for g in prange(3):
+                norms[g] = _momentum_norm(data, r, before, bounds[g], bounds[g + 1])
+            norm = norms[0] + norms[1] + norms[2]
+            beta = _momentum_factor(norm, previous, direction)
+            for g in prange(2):
+                _momentum_update(body, data, r, v, before, direction, beta, bounds[g], bounds[g + 1])
+            _momentum_update(body, data, r, v, before, direction, beta, bounds[2], bounds[3])
+            previous = norm
     return max_iterations, error, False
 
 
@@ -447,8 +490,14 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         else:
             order, bounds = groups
             r_sorted = rn[order]
-            it, err, ok = _solve_frictionless_halves(problem.body[order], problem.normal_data[order],
-                                                     problem.offset[order], r_sorted, v, bounds, tol, max_it, every)
+            threads = numba.get_num_threads()
+            numba.set_num_threads(min(2, threads))  # the other threads would only join the barriers
+            try:
+                it, err, ok = _solve_frictionless_halves(problem.body[order], problem.normal_data[order],
+                                                         problem.offset[order], r_sorted, v, bounds, tol, max_it,
+                                                         every, bool(options.nncg))
+            finally:
+                numba.set_num_threads(threads)
             rn[order] = r_sorted
         impulse[:, 0] = rn
     return impulse, SolverInfo(iterations=int(it), error=float(err), converged=bool(ok))
