@@ -293,45 +293,54 @@ def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterat
     threads at once, and the points across them.
 
     A forward sweep takes the two parts at once, then the points across; a backward sweep the
-    points across (backwards), then the two parts (backwards): the sweeps, and the NNCG momentum,
-    are those of :func:`_solve_frictionless` on the points in the order lower, upper, across,
-    whatever the number of threads. ``bounds`` ``(4,)``: group g is the points
-    ``bounds[g]..bounds[g+1]-1``. The wall (row N, zero inverse mass) may appear in both parts:
-    its velocity stays 0.
+    points across (backwards), then the two parts (backwards). The NNCG momentum after a backward
+    sweep is applied to the points across first, then to each part by its thread just before it
+    sweeps it forward (one launch of the threads per sweep). Each thread reads only bodies of its
+    own part or written before the launch, so the sweeps are those of :func:`_solve_frictionless`
+    on the points in the order lower, upper, across (up to the order of additions on the bodies
+    of the points across), whatever the number of threads. ``bounds`` ``(4,)``: group g is the
+    points ``bounds[g]..bounds[g+1]-1``. The wall (row N, zero inverse mass) may appear in both
+    parts: its velocity stays 0.
     """
     p = r.shape[0]
     if p == 0:
         return 0, 0.0, True
     error = np.inf
     sums = np.zeros((3, 6))
-    norms = np.zeros(3)
     before = r.copy() if nncg else np.zeros(0)
     direction = np.zeros(p if nncg else 0)
     previous = np.inf
+    beta = 0.0
+    momentum = False
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         forward = it % 2 == 0
         sums[:, :] = 0.0
-        if not forward:
-            _sweep(body, data, offset, r, v, bounds[2], bounds[3], False, check, sums[2])
-        for g in prange(2):
-            _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, check, sums[g])
         if forward:
+            if momentum:
+                _momentum_update(body, data, r, v, before, direction, beta, bounds[2], bounds[3])
+            for g in prange(2):
+                if momentum:
+                    _momentum_update(body, data, r, v, before, direction, beta, bounds[g], bounds[g + 1])
+                _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], True, check, sums[g])
+            momentum = False
             _sweep(body, data, offset, r, v, bounds[2], bounds[3], True, check, sums[2])
+        else:
+            _sweep(body, data, offset, r, v, bounds[2], bounds[3], False, check, sums[2])
+            for g in prange(2):
+                _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], False, check, sums[g])
         if check:
             error = _quad_error(sums[:, 0].sum(), sums[:, 1].sum(), sums[:, 2].sum(), sums[:, 3].sum(),
                                 sums[:, 4].sum(), sums[:, 5].sum())
             if error < tol:
                 return it + 1, error, True
         if nncg and not forward:
-            for g in prange(3):
-                norms[g] = _momentum_norm(data, r, before, bounds[g], bounds[g + 1])
-            norm = norms[0] + norms[1] + norms[2]
+            norm = _momentum_norm(data, r, before, 0, p)
             beta = _momentum_factor(norm, previous, direction)
-            for g in prange(2):
-                _momentum_update(body, data, r, v, before, direction, beta, bounds[g], bounds[g + 1])
-            _momentum_update(body, data, r, v, before, direction, beta, bounds[2], bounds[3])
             previous = norm
+            momentum = True
+    if momentum:  # the last sweep was backward: its momentum, as in _solve_frictionless
+        _momentum_update(body, data, r, v, before, direction, beta, 0, p)
     return max_iterations, error, False
 
 
