@@ -240,12 +240,12 @@ def test_two_thread_sweeps_solve_the_same_problem():
     the sequential sweeps, with and without the NNCG momentum: a 4 x 4 x 4 lattice of spheres,
     every point in one of the three groups."""
     from granpack.nscd.integrator import _sides
-    from granpack.nscd.nlgs import _halves
+    from granpack.nscd.nlgs import _two_parts
 
     state, pr, contacts = _lattice_problem(layers=4)
     problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
                        side=_sides(pr.x_tt, contacts.point[:, 2]))
-    order, bounds = _halves(problem)
+    order, bounds = _two_parts(problem)
     assert np.all(np.diff(bounds) > 0)  # both parts and the pairs across them
     for nncg in (False, True):
         r_seq, info_seq = solve(problem, NLGSOptions(tolerance=1e-12, max_iterations=200000, nncg=nncg))

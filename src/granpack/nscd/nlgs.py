@@ -82,7 +82,7 @@ class NLGSOptions:
         check_every: sweeps per convergence check (LMGC90 ``gs_it1``).
         parallel_points: a frictionless problem of at least this many points whose bodies are
             split in two sides (``ContactProblem.side``) is swept by two threads
-            (:func:`_solve_frictionless_halves`; the result does not depend on the number of
+            (:func:`_solve_frictionless_two_parts`; the result does not depend on the number of
             threads Numba has); smaller ones by one (the threads' start-up would cost more than
             they save).
         nncg: frictionless problems are solved with the NNCG momentum
@@ -287,7 +287,7 @@ def _momentum_update(body, data, r, v, before, direction, beta, start, stop):
 
 
 @jit(parallel=True)
-def _solve_frictionless_halves(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg):
+def _solve_frictionless_two_parts(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg):
     """Numba: the sweeps of :func:`_solve_frictionless` (same contract) with the points in three
     groups: the lower and the upper part of the pile, which share no body and are swept by two
     threads at once, and the points across them.
@@ -450,11 +450,11 @@ def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_e
     return it, error, False
 
 
-def _halves(problem: ContactProblem) -> tuple[np.ndarray, np.ndarray] | None:
-    """Points ordered in the three groups of :func:`_solve_frictionless_halves`, and the group bounds.
+def _two_parts(problem: ContactProblem) -> tuple[np.ndarray, np.ndarray] | None:
+    """Points ordered in the three groups of :func:`_solve_frictionless_two_parts`, and the group bounds.
 
-    The bodies are split by ``problem.side`` (0 or 1, e.g. the half of the cell their centre lies
-    in; the wall counts on either side): a point whose bodies are on one side goes to that side's
+    The bodies are split by ``problem.side`` (0 or 1: the lower or the upper part of the pile;
+    the wall counts on either side): a point whose bodies are on one side goes to that side's
     group, the others to group 2. ``None`` when the problem has no sides.
     """
     if problem.side is None:
@@ -492,7 +492,7 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         impulse[:, 0] = r0[:, 0]
         v = problem.velocity(impulse)
         rn = np.array(r0[:, 0], dtype=np.float64)
-        groups = _halves(problem) if problem.n_points >= options.parallel_points else None
+        groups = _two_parts(problem) if problem.n_points >= options.parallel_points else None
         if groups is None:
             it, err, ok = _solve_frictionless(problem.body, problem.normal_data, problem.offset, rn, v, tol, max_it, every,
                                               bool(options.nncg))
@@ -502,9 +502,9 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
             threads = numba.get_num_threads()
             numba.set_num_threads(min(2, threads))  # the other threads would only join the barriers
             try:
-                it, err, ok = _solve_frictionless_halves(problem.body[order], problem.normal_data[order],
-                                                         problem.offset[order], r_sorted, v, bounds, tol, max_it,
-                                                         every, bool(options.nncg))
+                it, err, ok = _solve_frictionless_two_parts(
+                    problem.body[order], problem.normal_data[order], problem.offset[order], r_sorted, v, bounds, tol,
+                    max_it, every, bool(options.nncg))
             finally:
                 numba.set_num_threads(threads)
             rn[order] = r_sorted

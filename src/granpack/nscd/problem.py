@@ -242,8 +242,8 @@ class ContactProblem:
         gap: ``(P,)`` gaps at the predicted configuration, d.
         free_velocity: ``(N + 1, 6)`` world free velocities (row N: wall, zeros).
         initial_impulse: ``(P, 3)`` local impulses the solver starts from (warm start).
-        side: ``(N + 1,)`` 0 or 1 per body (two halves of the cell whose points a solver may
-            sweep in parallel), or ``None``.
+        side: ``(N + 1,)`` 0 or 1 per body (the lower and the upper part of the pile, whose
+            points a solver may sweep in parallel), or ``None``.
     """
 
     time_step: float
@@ -394,8 +394,8 @@ def assemble(
         initial_impulse: ``(P, 3)`` local warm-start impulses, zeros if ``None``.
         recovery_slop, recovery_rate, recovery_speed: ``s_r`` (d), β and ``v_r`` (sqrt(g d)) of the
             overlap recovery (module docstring); ``recovery_rate`` 0: none.
-        side: ``(N + 1,)`` 0 or 1 per body, the two halves a solver may sweep in parallel
-            (:mod:`granpack.nscd.nlgs`), or ``None``.
+        side: ``(N + 1,)`` 0 or 1 per body, the two parts of the pile a solver may sweep in
+            parallel (:mod:`granpack.nscd.nlgs`), or ``None``.
 
     Returns:
         The :class:`ContactProblem`.
