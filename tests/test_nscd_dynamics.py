@@ -404,6 +404,45 @@ def test_results_are_bitwise_identical_run_to_run():
     assert len(digests) == 1 and len(next(iter(digests))) > 60
 
 
+_THREADS = """
+import hashlib, numpy as np, sys
+sys.path.insert(0, {tests!r})
+from test_nscd_dynamics import pour, run, H
+from granpack.nscd import StepParameters
+state = pour(n=60, seed=5)
+run(state, StepParameters(time_step=H, parallel_points=1), 150)
+h = hashlib.sha256()
+for a in (state.position, state.quaternion, state.velocity, state.omega):
+    h.update(np.ascontiguousarray(a).tobytes())
+print(h.hexdigest())
+"""
+
+
+def test_results_do_not_depend_on_the_thread_count():
+    """Kernels that split their bodies, manifolds or points among threads (prediction, update,
+    assembly, warm start, the two-part solve) give the same pour on one thread and on three, bit for bit."""
+    import os
+    import pathlib
+
+    code = _THREADS.format(tests=str(pathlib.Path(__file__).parent))
+    digests = set()
+    for threads in ("1", "3"):
+        env = {**os.environ, "NUMBA_NUM_THREADS": threads}
+        digests.add(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout)
+    assert len(digests) == 1 and len(next(iter(digests))) > 60
+
+
+def test_granpack_lets_waiting_openmp_threads_spin_only_briefly():
+    """granpack sets GNU OpenMP's spin count before the runtime loads, unless the user did."""
+    import os
+
+    code = "import os, granpack._numba; print(os.environ['GOMP_SPINCOUNT'])"
+    env = {k: v for k, v in os.environ.items() if k != "GOMP_SPINCOUNT"}
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.strip() == "10000"
+    env["GOMP_SPINCOUNT"] = "5"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.strip() == "5"
+
+
 def test_required_alert_catches_fast_approaches_that_a_fixed_alert_misses():
     """Two spheres approaching at 2 x 8 sqrt(g d): 0.08 d per step, more than the default alert.
 

@@ -3,11 +3,22 @@
 Every kernel in granpack is compiled through :func:`jit` so that caching, fastmath and
 parallelism are decided here only. Kernels are compiled on first call and cached on disk
 (``cache=True``), so the second process that imports a kernel pays no compilation.
+
+Threads that wait spin only briefly (``GOMP_SPINCOUNT``, unless the environment sets it): GNU
+OpenMP's default lets an idle worker of a ``prange`` loop spin for about a millisecond, and on a
+machine of two CPUs it then takes one of them from the narrow phase's threads and from the
+sequential kernels that run between two parallel loops (a step of a 3000-pinacoid pile a fifth
+slower; benchmarks/README.md). The variable is read when the OpenMP runtime is loaded, at the
+first parallel loop, so it is set here, before any kernel runs.
 """
 
 from __future__ import annotations
 
-import numba
+import os
+
+os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+
+import numba  # noqa: E402  (after the OpenMP setting above)
 
 __all__ = ["jit", "prange"]
 

@@ -450,6 +450,25 @@ def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_e
     return it, error, False
 
 
+@jit(parallel=True)
+def _gather_points(order, body, data, offset, r):
+    """Numba: the rows ``order`` of the points' bodies, packed operator, offsets and impulses
+    (copies, in that order), gathered by all threads."""
+    p = order.shape[0]
+    body_out = np.empty((p, body.shape[1]), body.dtype)
+    data_out = np.empty((p, data.shape[1]))
+    offset_out = np.empty(p)
+    r_out = np.empty(p)
+    for k in prange(p):
+        q = order[k]
+        body_out[k, 0], body_out[k, 1] = body[q, 0], body[q, 1]
+        for c in range(data.shape[1]):
+            data_out[k, c] = data[q, c]
+        offset_out[k] = offset[q]
+        r_out[k] = r[q]
+    return body_out, data_out, offset_out, r_out
+
+
 def _two_parts(problem: ContactProblem) -> tuple[np.ndarray, np.ndarray] | None:
     """Points ordered in the three groups of :func:`_solve_frictionless_two_parts`, and the group bounds.
 
@@ -498,13 +517,12 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
                                               bool(options.nncg))
         else:
             order, bounds = groups
-            r_sorted = rn[order]
+            body, data, offset, r_sorted = _gather_points(order, problem.body, problem.normal_data, problem.offset, rn)
             threads = numba.get_num_threads()
             numba.set_num_threads(min(2, threads))  # the other threads would only join the barriers
             try:
-                it, err, ok = _solve_frictionless_two_parts(
-                    problem.body[order], problem.normal_data[order], problem.offset[order], r_sorted, v, bounds, tol,
-                    max_it, every, bool(options.nncg))
+                it, err, ok = _solve_frictionless_two_parts(body, data, offset, r_sorted, v, bounds, tol, max_it, every,
+                                                            bool(options.nncg))
             finally:
                 numba.set_num_threads(threads)
             rn[order] = r_sorted

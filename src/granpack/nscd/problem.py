@@ -49,9 +49,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numba
 import numpy as np
 
-from granpack._numba import jit
+from granpack._numba import jit, prange
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["ContactProblem", "assemble", "tangent_frame", "NORMAL_WIDTH", "FRICTION_WIDTH"]
@@ -115,18 +116,35 @@ def _store_arm(row, col, a, e, inv_iw):
     return c0, c1, c2, k0, k1, k2
 
 
-@jit
-def _assemble_kernel(
-    body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
+@jit(parallel=True)
+def _assemble_parallel(
+    chunks, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
     body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
 ):
+    """Numba: :func:`_assemble_kernel` over ``chunks`` consecutive ranges of manifolds at once (the
+    manifolds write disjoint rows, so the result does not depend on ``chunks``)."""
+    n = body_i.shape[0]
+    for c in prange(chunks):
+        _assemble_kernel(
+            n * c // chunks, n * (c + 1) // chunks, body_i, body_j, shift, normal, point_start, point, gap, x,
+            inv_mass, inv_iw, v_start, h, restitution, mu, body, data, offset, tangent, lever_i, lever_j, fdata,
+            with_friction, recovery_slop, recovery_rate, recovery_speed,
+        )
+
+
+@jit
+def _assemble_kernel(
+    m0, m1, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
+):
+    """Numba: the rows of the points of manifolds ``m0 <= m < m1`` (see :func:`assemble`)."""
     wall = x.shape[0]
     n = np.empty(3)
     t = np.empty(3)
     s = np.empty(3)
     ai = np.empty(3)
     aj = np.empty(3)
-    for m in range(body_i.shape[0]):
+    for m in range(m0, m1):
         i = body_i[m]
         j = body_j[m] if body_j[m] >= 0 else wall
         n[0], n[1], n[2] = normal[m, 0], normal[m, 1], normal[m, 2]
@@ -208,6 +226,15 @@ def _apply_kernel(body, data, fdata, tangent, impulse, velocity, with_friction):
             velocity[j, c] -= data[k, IMJ] * pw
             velocity[i, 3 + c] += dwi
             velocity[j, 3 + c] -= dwj
+
+
+@jit
+def _world_impulse_kernel(data, tangent, impulse, out):
+    """Numba: ``out = r_n n + r_t t + r_s s`` per point (P, 3), world impulses of local ones."""
+    for k in range(impulse.shape[0]):
+        rn, rt, rs = impulse[k, 0], impulse[k, 1], impulse[k, 2]
+        for c in range(3):
+            out[k, c] = rn * data[k, N0 + c] + rt * tangent[k, 0, c] + rs * tangent[k, 1, c]
 
 
 @jit
@@ -302,7 +329,9 @@ class ContactProblem:
 
     def world_impulse(self, impulse: np.ndarray) -> np.ndarray:
         """World impulses on body i ``r_n n + r_t t + r_s s`` ``(P, 3)`` of local impulses ``(P, 3)``."""
-        return impulse[:, :1] * self.normal + impulse[:, 1:2] * self.tangent[:, 0] + impulse[:, 2:3] * self.tangent[:, 1]
+        out = np.empty((self.n_points, 3))
+        _world_impulse_kernel(self.normal_data, self.tangent, np.ascontiguousarray(impulse, dtype=np.float64), out)
+        return out
 
     def residual(self, impulse: np.ndarray) -> float:
         """Relative natural-map residual of local impulses ``(P, 3)``: 0 at an exact solution.
@@ -409,7 +438,8 @@ def assemble(
     lever_i = np.empty((p, 3))
     lever_j = np.empty((p, 3))
     fdata = np.empty((p if with_friction else 0, FRICTION_WIDTH))
-    _assemble_kernel(
+    _assemble_parallel(
+        numba.get_num_threads(),
         np.ascontiguousarray(contacts.body_i, dtype=np.int64),
         np.ascontiguousarray(contacts.body_j, dtype=np.int64),
         np.ascontiguousarray(contacts.shift, dtype=np.float64).reshape(-1, 3),

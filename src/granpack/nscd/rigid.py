@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from granpack._numba import jit
+from granpack._numba import jit, prange
 from granpack.rotations import quat_integrate_body_nb, quat_to_matrix_nb
 from granpack.state import ParticleState
 
@@ -82,8 +82,9 @@ def world_inverse_inertia(quaternion: np.ndarray, inertia: np.ndarray) -> np.nda
     return out
 
 
-@jit
-def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free):
+@jit(parallel=True)
+def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free,
+                   chunks):
     """Numba: predicted configuration, world inverse inertia, start and free velocities.
 
     Args:
@@ -96,11 +97,27 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
         inv_inertia_w: output ``(N + 1, 6)`` world inverse inertia at TT (row N: wall, zeros).
         v_start, v_free: outputs ``(N + 1, 6)`` world generalised velocities at t_n and free
             velocities (row N: wall, zeros).
+        chunks: consecutive ranges of bodies computed at once (threads); the bodies are
+            independent, so the result does not depend on it.
     """
     n = position.shape[0]
+    for c in prange(chunks):
+        _predict_bodies(n * c // chunks, n * (c + 1) // chunks, position, quaternion, velocity, omega, inertia, h, theta,
+                        x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free)
+    for k in range(6):
+        inv_inertia_w[n, k] = 0.0
+        v_start[n, k] = 0.0
+        v_free[n, k] = 0.0
+
+
+@jit
+def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, theta, x_tt, q_tt, rot_tt, inv_inertia_w,
+                    v_start, v_free):
+    """Numba: :func:`predict_kernel` for the bodies ``p0 <= p < p1``."""
     a = (1.0 - theta) * h
     phi = np.empty(3)
-    for p in range(n):
+    inv_j = np.empty(3)
+    for p in range(p0, p1):
         for k in range(3):
             x_tt[p, k] = position[p, k] + a * velocity[p, k]
             phi[k] = a * omega[p, k]
@@ -110,7 +127,6 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
         rot = quat_to_matrix_nb(q)
         rot_tt[p] = rot
         j0, j1, j2 = inertia[p, 0], inertia[p, 1], inertia[p, 2]
-        inv_j = np.empty(3)
         inv_j[0], inv_j[1], inv_j[2] = 1.0 / j0, 1.0 / j1, 1.0 / j2
         _sym_inverse_inertia(rot, inv_j, inv_inertia_w[p])
         w0, w1, w2 = omega[p, 0], omega[p, 1], omega[p, 2]
@@ -133,14 +149,10 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
             v_start[p, 3 + k] = rot[k, 0] * w0 + rot[k, 1] * w1 + rot[k, 2] * w2
             v_free[p, 3 + k] = rot[k, 0] * f0 + rot[k, 1] * f1 + rot[k, 2] * f2
         v_free[p, 2] -= h
-    for k in range(6):
-        inv_inertia_w[n, k] = 0.0
-        v_start[n, k] = 0.0
-        v_free[n, k] = 0.0
 
 
-@jit
-def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, position, quaternion, velocity, omega):
+@jit(parallel=True)
+def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, position, quaternion, velocity, omega, chunks):
     """Numba: end-of-step positions, orientations and velocities, positions wrapped in x, y.
 
     Args:
@@ -150,10 +162,22 @@ def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, pos
         h, theta: time step and θ.
         lx, ly: periods of the cell, d.
         position, quaternion, velocity, omega: state arrays, overwritten (omega body frame).
+        chunks: consecutive ranges of bodies computed at once (threads); the result does not
+            depend on it.
     """
+    n = position.shape[0]
+    for c in prange(chunks):
+        _update_bodies(n * c // chunks, n * (c + 1) // chunks, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly,
+                       position, quaternion, velocity, omega)
+
+
+@jit
+def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, position, quaternion, velocity,
+                   omega):
+    """Numba: :func:`update_kernel` for the bodies ``p0 <= p < p1``."""
     b = theta * h
     phi = np.empty(3)
-    for p in range(position.shape[0]):
+    for p in range(p0, p1):
         rot = rot_tt[p]
         for k in range(3):
             velocity[p, k] = v_end[p, k]

@@ -25,42 +25,57 @@ tangential part clipped to the friction disc ``μ r_n``.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
-from granpack._numba import jit
+from granpack._numba import jit, prange
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["warm_impulses"]
 
 
 @jit
-def _rotate_body(phi, x):
-    """Numba: Rodrigues rotation of vector ``x`` by rotation vector ``phi`` (both tuples of 3)."""
+def _rotation(phi):
+    """Numba: ``(k0, k1, k2, cos, sin, turns)`` of the rotation vector ``phi`` (tuple of 3): unit
+    axis, cosine and sine of its angle, and whether it turns at all (angle >= 1e-300)."""
     angle = np.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
     if angle < 1e-300:
-        return x[0], x[1], x[2]
-    k0, k1, k2 = phi[0] / angle, phi[1] / angle, phi[2] / angle
-    c, s = np.cos(angle), np.sin(angle)
-    kx0 = k1 * x[2] - k2 * x[1]
-    kx1 = k2 * x[0] - k0 * x[2]
-    kx2 = k0 * x[1] - k1 * x[0]
-    kd = (1.0 - c) * (k0 * x[0] + k1 * x[1] + k2 * x[2])
-    return x[0] * c + kx0 * s + k0 * kd, x[1] * c + kx1 * s + k1 * kd, x[2] * c + kx2 * s + k2 * kd
+        return 0.0, 0.0, 1.0, 1.0, 0.0, False
+    return phi[0] / angle, phi[1] / angle, phi[2] / angle, np.cos(angle), np.sin(angle), True
 
 
 @jit
+def _rotate(k0, k1, k2, c, s, x0, x1, x2):
+    """Numba: Rodrigues rotation of ``(x0, x1, x2)`` about the unit axis ``k`` by the angle whose
+    cosine and sine are ``c``, ``s``."""
+    kx0 = k1 * x2 - k2 * x1
+    kx1 = k2 * x0 - k0 * x2
+    kx2 = k0 * x1 - k1 * x0
+    kd = (1.0 - c) * (k0 * x0 + k1 * x1 + k2 * x2)
+    return x0 * c + kx0 * s + k0 * kd, x1 * c + kx1 * s + k1 * kd, x2 * c + kx2 * s + k2 * kd
+
+
+@jit(parallel=True)
 def _warm_kernel(
     old_i, old_j, old_start, old_point, old_impulse,
     new_i, new_j, new_start, new_point, normal, tangent,
-    x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out,
+    x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out, chunks,
 ):
+    """Numba: the warm start of every new point (module docstring); returns the points matched.
+
+    The new manifolds are matched in ``chunks`` consecutive ranges at once: each old manifold is
+    the pair of at most one new manifold, so the ranges share no old point and the result does
+    not depend on ``chunks``.
+    """
     n_bodies = x_tt.shape[0]
     # CSR of old manifolds per body (each manifold listed under both of its particles)
     count = np.zeros(n_bodies + 1, np.int64)
+    widest = 0
     for m in range(old_i.shape[0]):
         count[old_i[m] + 1] += 1
         if old_j[m] >= 0:
             count[old_j[m] + 1] += 1
+        widest = max(widest, old_start[m + 1] - old_start[m])
     start = np.cumsum(count)
     fill = start[:-1].copy()
     listed = np.empty(start[-1], np.int64)
@@ -71,9 +86,31 @@ def _warm_kernel(
             listed[fill[old_j[m]]] = m
             fill[old_j[m]] += 1
     used = np.zeros(old_point.shape[0], np.bool_)
+    matched = np.zeros(chunks, np.int64)
+    n = new_i.shape[0]
+    for c in prange(chunks):
+        matched[c] = _match(
+            n * c // chunks, n * (c + 1) // chunks, start, listed, used, widest, old_i, old_j, old_start, old_point,
+            old_impulse, new_i, new_j, new_start, new_point, normal, tangent, x_tt, rot_tt, velocity, omega, h, lx,
+            ly, tol, mu, out,
+        )
+    return matched.sum()
+
+
+@jit
+def _match(
+    m0, m1, start, listed, used, widest, old_i, old_j, old_start, old_point, old_impulse,
+    new_i, new_j, new_start, new_point, normal, tangent, x_tt, rot_tt, velocity, omega, h, lx, ly, tol, mu, out,
+):
+    """Numba: the warm start of the points of new manifolds ``m0 <= m < m1``; returns the points
+    matched (``start``, ``listed``: CSR of the old manifolds of each body; ``used``: old points
+    taken)."""
+    old_body = np.empty((widest, 3))  # the old points of the matched manifold, in i's new body frame
     matched = 0
     tol2 = tol * tol
-    for m in range(new_i.shape[0]):
+    last = -1
+    k0, k1, k2, cos, sin, turns = 0.0, 0.0, 1.0, 1.0, 0.0, False
+    for m in range(m0, m1):
         i, j = new_i[m], new_j[m]
         found = -1
         sign = 1.0
@@ -93,10 +130,27 @@ def _warm_kernel(
         if found < 0:
             continue
         rot = rot_tt[i]
-        phi = (h * omega[i, 0], h * omega[i, 1], h * omega[i, 2])
+        if i != last:  # manifolds come ordered by i: one rotation per body
+            k0, k1, k2, cos, sin, turns = _rotation((h * omega[i, 0], h * omega[i, 1], h * omega[i, 2]))
+            last = i
         back0 = x_tt[i, 0] - h * velocity[i, 0]
         back1 = x_tt[i, 1] - h * velocity[i, 1]
         back2 = x_tt[i, 2] - h * velocity[i, 2]
+        q0 = old_start[found]
+        for q in range(q0, old_start[found + 1]):
+            a0 = old_point[q, 0] - back0
+            a1 = old_point[q, 1] - back1
+            a2 = old_point[q, 2] - back2
+            if abs(a0) > 0.5 * lx:  # minimum image (most points are not across the boundary)
+                a0 -= lx * np.round(a0 / lx)
+            if abs(a1) > 0.5 * ly:
+                a1 -= ly * np.round(a1 / ly)
+            c0 = rot[0, 0] * a0 + rot[1, 0] * a1 + rot[2, 0] * a2
+            c1 = rot[0, 1] * a0 + rot[1, 1] * a1 + rot[2, 1] * a2
+            c2 = rot[0, 2] * a0 + rot[1, 2] * a1 + rot[2, 2] * a2
+            if turns:
+                c0, c1, c2 = _rotate(k0, k1, k2, cos, sin, c0, c1, c2)
+            old_body[q - q0, 0], old_body[q - q0, 1], old_body[q - q0, 2] = c0, c1, c2
         for k in range(new_start[m], new_start[m + 1]):
             d0 = new_point[k, 0] - x_tt[i, 0]
             d1 = new_point[k, 1] - x_tt[i, 1]
@@ -106,21 +160,10 @@ def _warm_kernel(
             b2 = rot[0, 2] * d0 + rot[1, 2] * d1 + rot[2, 2] * d2
             best = -1
             best_d2 = tol2
-            for q in range(old_start[found], old_start[found + 1]):
+            for q in range(q0, old_start[found + 1]):
                 if used[q]:
                     continue
-                a0 = old_point[q, 0] - back0
-                a1 = old_point[q, 1] - back1
-                a2 = old_point[q, 2] - back2
-                a0 -= lx * np.round(a0 / lx)
-                a1 -= ly * np.round(a1 / ly)
-                c = (
-                    rot[0, 0] * a0 + rot[1, 0] * a1 + rot[2, 0] * a2,
-                    rot[0, 1] * a0 + rot[1, 1] * a1 + rot[2, 1] * a2,
-                    rot[0, 2] * a0 + rot[1, 2] * a1 + rot[2, 2] * a2,
-                )
-                o0, o1, o2 = _rotate_body(phi, c)
-                dist2 = (o0 - b0) ** 2 + (o1 - b1) ** 2 + (o2 - b2) ** 2
+                dist2 = (old_body[q - q0, 0] - b0) ** 2 + (old_body[q - q0, 1] - b1) ** 2 + (old_body[q - q0, 2] - b2) ** 2
                 if dist2 < best_d2:
                     best_d2 = dist2
                     best = q
@@ -198,5 +241,6 @@ def warm_impulses(
         float(tolerance),
         float(friction),
         out,
+        numba.get_num_threads(),
     )
     return out, int(matched)
