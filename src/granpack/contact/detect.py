@@ -189,7 +189,7 @@ class Detector:
             self._pair_axis = np.full(len(self.verlet.pair_j), -1, np.int64)
         geo = world_geometry(state.position, state.quaternion, state.kind, shapes.vertex_start, shapes.vertices,
                              shapes.face_start, shapes.face_normals, shapes.axis_start, shapes.face_axes,
-                             shapes.direction_start, shapes.edge_directions)
+                             shapes.direction_start, shapes.edge_directions, self.threads)
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
         args = (state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),

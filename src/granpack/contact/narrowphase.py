@@ -53,7 +53,7 @@ import math
 
 import numpy as np
 
-from granpack._numba import jit
+from granpack._numba import jit, prange
 from granpack.contact._gjk import gjk_distance
 from granpack.contact.contacts import manifold_type_nb
 from granpack.rotations import quat_to_matrix_nb
@@ -68,9 +68,9 @@ _HINT_COS = 0.999
 _KEEP_BAND = 5.0
 
 
-@jit
+@jit(parallel=True)
 def world_geometry(position, quaternion, kind, vertex_start, vertices, face_start, face_normals, axis_start, face_axes,
-                   direction_start, edge_directions):
+                   direction_start, edge_directions, chunks=1):
     """Rotate every polyhedron's body-frame geometry into the world frame (relative to its centre).
 
     Args:
@@ -79,6 +79,8 @@ def world_geometry(position, quaternion, kind, vertex_start, vertices, face_star
         kind: ``(N,)`` kind index into the shape table.
         vertex_start, vertices, face_start, face_normals, axis_start, face_axes, direction_start, edge_directions: the
             :class:`~granpack.shapes.ShapeTable` arrays of the same names.
+        chunks: consecutive ranges of particles rotated at once (threads); the result does not
+            depend on it.
 
     Returns:
         ``(pv, pf, pa, pd, rv, fn, ax, dr)``: per-particle CSR offsets ``(N+1,)`` into the world
@@ -100,15 +102,16 @@ def world_geometry(position, quaternion, kind, vertex_start, vertices, face_star
     fn = np.empty((pf[n], 3))
     ax = np.empty((pa[n], 3))
     dr = np.empty((pd[n], 3))
-    for p in range(n):
-        if pv[p + 1] == pv[p]:
-            continue
-        k = kind[p]
-        R = quat_to_matrix_nb(quaternion[p])
-        _rotate_rows(R, vertices, vertex_start[k], vertex_start[k + 1], rv, pv[p])
-        _rotate_rows(R, face_normals, face_start[k], face_start[k + 1], fn, pf[p])
-        _rotate_rows(R, face_axes, axis_start[k], axis_start[k + 1], ax, pa[p])
-        _rotate_rows(R, edge_directions, direction_start[k], direction_start[k + 1], dr, pd[p])
+    for c in prange(chunks):
+        for p in range(n * c // chunks, n * (c + 1) // chunks):
+            if pv[p + 1] == pv[p]:
+                continue
+            k = kind[p]
+            R = quat_to_matrix_nb(quaternion[p])
+            _rotate_rows(R, vertices, vertex_start[k], vertex_start[k + 1], rv, pv[p])
+            _rotate_rows(R, face_normals, face_start[k], face_start[k + 1], fn, pf[p])
+            _rotate_rows(R, face_axes, axis_start[k], axis_start[k + 1], ax, pa[p])
+            _rotate_rows(R, edge_directions, direction_start[k], direction_start[k + 1], dr, pd[p])
     return pv, pf, pa, pd, rv, fn, ax, dr
 
 

@@ -478,13 +478,28 @@ def _two_parts(problem: ContactProblem) -> tuple[np.ndarray, np.ndarray] | None:
     """
     if problem.side is None:
         return None
-    side = problem.side
-    si = side[problem.body[:, 0]]
-    sj = side[problem.body[:, 1]]
-    wall = problem.body[:, 1] == problem.n_bodies
-    group = np.where(wall | (si == sj), si, 2)
-    order = np.argsort(group, kind="stable")
-    bounds = np.searchsorted(group[order], np.arange(4)).astype(np.int64)
+    return _group_order(problem.body, problem.side)
+
+
+@jit
+def _group_order(body, side):
+    """Numba: :func:`_two_parts`'s order (stable within each group) and bounds ``(4,)``."""
+    wall = side.shape[0] - 1
+    p = body.shape[0]
+    group = np.empty(p, np.int64)
+    bounds = np.zeros(4, np.int64)
+    for k in range(p):
+        si, sj = side[body[k, 0]], side[body[k, 1]]
+        g = si if body[k, 1] == wall or si == sj else 2
+        group[k] = g
+        bounds[g + 1] += 1
+    for g in range(3):
+        bounds[g + 1] += bounds[g]
+    fill = bounds[:3].copy()
+    order = np.empty(p, np.int64)
+    for k in range(p):
+        order[fill[group[k]]] = k
+        fill[group[k]] += 1
     return order, bounds
 
 

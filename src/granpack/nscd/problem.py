@@ -237,10 +237,11 @@ def _world_impulse_kernel(data, tangent, impulse, out):
             out[k, c] = rn * data[k, N0 + c] + rt * tangent[k, 0, c] + rs * tangent[k, 1, c]
 
 
-@jit
+@jit(parallel=True)
 def _local_velocity_kernel(body, data, tangent, lever_i, lever_j, velocity, out):
-    """Numba: local relative velocities ``(u_n, u_t, u_s)`` (P, 3) from world body velocities."""
-    for k in range(body.shape[0]):
+    """Numba: local relative velocities ``(u_n, u_t, u_s)`` (P, 3) from world body velocities
+    (points independent: all threads)."""
+    for k in prange(body.shape[0]):
         i, j = body[k, 0], body[k, 1]
         wi0, wi1, wi2 = velocity[i, 3], velocity[i, 4], velocity[i, 5]
         wj0, wj1, wj2 = velocity[j, 3], velocity[j, 4], velocity[j, 5]
