@@ -20,12 +20,14 @@ Pair kinds (docs/method/contact-detection.md):
   pinacoid faces); for an edge axis, the closest points of the two supporting edges. Face axes
   are preferred unless an edge axis is better by more than ``eps_f`` (hysteresis).
 
-Gaps are exact. A separated pair's manifold is accepted when its smallest gap equals the axis
-separation (then both are the distance); otherwise (vertex-vertex, vertex-edge, parallel edges)
-the distance and closest points come from GJK. For an interpenetrating pair the smallest gap is
-minus the penetration depth, the best separating-axis value ``σ <= 0``, and no point's gap is set
-below ``σ`` even when the hysteresis keeps another axis: along such an axis the bodies seem to
-overlap by up to ``eps_f`` more, and the position correction would chase those phantom overlaps.
+Gaps are exact. A separated pair's manifold is accepted when its smallest gap equals its axis's
+separation or the best separation of all axes (a lower bound of the distance, which the gap, a
+distance between two surface points, bounds from above: both are then the distance); otherwise
+(vertex-vertex, vertex-edge, parallel edges) the distance and closest points come from GJK. For
+an interpenetrating pair the smallest gap is minus the penetration depth, the best
+separating-axis value ``σ <= 0``, and no point's gap is set below ``σ`` even when the hysteresis
+keeps another axis: along such an axis the bodies seem to overlap by up to ``eps_f`` more, and
+the position correction would chase those phantom overlaps.
 
 Why every vertex: keeping four points of a clipped polygon (a common reduction) leaves the
 others unconstrained, and a grain rocking about the kept ones slowly sinks them into its
@@ -752,7 +754,9 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 # given a gap below sigma and the smallest gap is the exact depth
                 gmin = _clamp_gaps(gp, cnt, sigma)
                 sk = sigma
-            if abs(gmin - sk) <= tol_x:
+            if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
+                # the smallest gap is the axis separation, or, separated, the best separation of
+                # every axis (a lower bound of the distance that a pair of surface points meets)
                 return cnt, nx, ny, nz
             if sigma <= 0.0 and cnt < buf.shape[0]:
                 # interpenetration whose deepest vertex lies outside the reference face: add it
