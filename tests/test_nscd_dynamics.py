@@ -386,54 +386,41 @@ def test_body_crossing_the_periodic_boundary_keeps_contacts_and_velocity():
     assert dx == pytest.approx(0.2, abs=1e-9)
 
 
-_DETERMINISM = """
+_POUR_DIGEST = """
 import hashlib, numpy as np, sys
 sys.path.insert(0, {tests!r})
 from test_nscd_dynamics import pour, run, H
 from granpack.nscd import StepParameters
-state = pour(n=100, seed=11)
-run(state, StepParameters(time_step=H, friction=0.2), 200)
+state = pour(n={n}, seed={seed})
+run(state, StepParameters(time_step=H, {params}), {steps})
 h = hashlib.sha256()
 for a in (state.position, state.quaternion, state.velocity, state.omega):
     h.update(np.ascontiguousarray(a).tobytes())
 print(h.hexdigest())
 """
+
+
+def _pour_digest(n, seed, params, steps, threads=None):
+    """SHA-256 of the state after a pour of ``n`` pinacoids, run in a fresh process (``threads``:
+    its NUMBA_NUM_THREADS)."""
+    import os
+    import pathlib
+
+    code = _POUR_DIGEST.format(tests=str(pathlib.Path(__file__).parent), n=n, seed=seed, params=params, steps=steps)
+    env = os.environ if threads is None else {**os.environ, "NUMBA_NUM_THREADS": threads}
+    digest = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert len(digest) > 60
+    return digest
 
 
 def test_results_are_bitwise_identical_run_to_run():
-    import pathlib
-
-    code = _DETERMINISM.format(tests=str(pathlib.Path(__file__).parent))
-    digests = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout for _ in range(2)}
-    assert len(digests) == 1 and len(next(iter(digests))) > 60
-
-
-_THREADS = """
-import hashlib, numpy as np, sys
-sys.path.insert(0, {tests!r})
-from test_nscd_dynamics import pour, run, H
-from granpack.nscd import StepParameters
-state = pour(n=60, seed=5)
-run(state, StepParameters(time_step=H, parallel_points=1), 150)
-h = hashlib.sha256()
-for a in (state.position, state.quaternion, state.velocity, state.omega):
-    h.update(np.ascontiguousarray(a).tobytes())
-print(h.hexdigest())
-"""
+    assert len({_pour_digest(100, 11, "friction=0.2", 200) for _ in range(2)}) == 1
 
 
 def test_results_do_not_depend_on_the_thread_count():
     """Kernels that split their bodies, manifolds or points among threads (prediction, update,
     assembly, warm start, the two-part solve) give the same pour on one thread and on three, bit for bit."""
-    import os
-    import pathlib
-
-    code = _THREADS.format(tests=str(pathlib.Path(__file__).parent))
-    digests = set()
-    for threads in ("1", "3"):
-        env = {**os.environ, "NUMBA_NUM_THREADS": threads}
-        digests.add(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout)
-    assert len(digests) == 1 and len(next(iter(digests))) > 60
+    assert len({_pour_digest(60, 5, "parallel_points=1", 150, threads) for threads in ("1", "3")}) == 1
 
 
 def test_granpack_lets_waiting_openmp_threads_spin_only_briefly():
