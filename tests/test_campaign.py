@@ -304,3 +304,25 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
     # nothing left to do: no cluster is started, the tables are rewritten
     report = run_campaign(spec, out, progress=False)
     assert (report.n_skipped, report.n_done, report.n_failed) == (4, 4, 0)
+
+
+def test_a_local_worker_ignores_sigint_and_logs_only_critical_distributed_messages(monkeypatch):
+    """The workers' preload: Ctrl-C is left to the campaign's process, and a worker's own
+    ``distributed`` errors (a heartbeat cut by the closing scheduler) do not reach its stderr."""
+    import logging
+    import signal
+
+    from granpack.campaign.runner import dask_setup
+
+    handlers = {}
+    monkeypatch.setattr(signal, "signal", lambda signum, handler: handlers.update({signum: handler}))
+    logger = logging.getLogger("distributed")
+    saved = logger.level
+    logger.setLevel(logging.INFO)
+    try:
+        dask_setup(object())
+        assert handlers == {signal.SIGINT: signal.SIG_IGN}
+        assert logger.getEffectiveLevel() == logging.CRITICAL
+        assert not logging.getLogger("distributed.worker").isEnabledFor(logging.ERROR)
+    finally:
+        logger.setLevel(saved)

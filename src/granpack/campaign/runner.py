@@ -171,15 +171,20 @@ class _QuietShutdown:
 
 def dask_setup(worker: object) -> None:
     """Preload of the local workers (run in each worker process as it starts, restarts
-    included): ignore SIGINT.
+    included): ignore SIGINT, and log only critical ``distributed`` messages.
 
     Ctrl-C in a terminal signals the whole process group. A worker that took it would close
     itself while this process closes the cluster, and the two shutdowns race (a worker's
     ``CommClosedError`` logged with its traceback); with the workers deaf to it, this process
-    alone closes the cluster and the interrupted runs keep their checkpoints.
+    alone closes the cluster and the interrupted runs keep their checkpoints. A worker whose
+    heartbeat is in flight when the scheduler closes still logs that failure with a traceback
+    onto the campaign's stderr, so the workers' own ``distributed`` errors are not logged: a
+    run's failure reaches the campaign as the task's outcome (and the run's error file), and a
+    lost worker is logged by its nanny, in this process.
     """
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
 
 
 @contextlib.contextmanager
