@@ -463,7 +463,8 @@ def test_required_alert_catches_fast_approaches_that_a_fixed_alert_misses():
 
 def test_step_parameters_reject_bad_values_and_bound_the_correction_budget():
     for bad in ({"time_step": 0.0}, {"theta": 0.4}, {"friction": -0.1}, {"restitution": 1.5}, {"alert": -1.0},
-                {"correction_sweeps": 0}, {"correction_step": 0.0}):
+                {"correction_sweeps": 0}, {"correction_step": 0.0}, {"slow_recovery_speed": -1e-4},
+                {"slow_recovery_slop": -1e-5}):
         with pytest.raises(ValueError):
             StepParameters(**bad)
     assert StepParameters().correction_options.max_iterations == 200
@@ -503,6 +504,33 @@ def test_overlap_recovery_pushes_a_ball_out_of_the_wall_at_a_bounded_speed_and_s
     plain = make_state(ball, [[0.0, 0.0, 0.5 - 0.01]])
     run(plain, replace(params, recovery_rate=0.0), 100)
     assert 0.5 - plain.position[0, 2] == pytest.approx(0.01, abs=1e-9)
+
+
+def test_slow_overlap_recovery_pushes_an_overlap_between_the_two_slops_back_at_its_own_speed():
+    """A ball at rest 3e-4 d into the wall, below the recovery slop (5e-4 d): the velocity law
+    alone leaves it there; with the slow tier (slop 5e-5 d, speed 2e-4 sqrt(g d)) it moves out at
+    that speed, never faster, and stops at the slow slop (0.2 of the excess per step at the end). A ball 0.01 d in is still pushed
+    out at the fast tier's speed (the slow tier never slows a deep overlap down)."""
+    ball = Sphere(1.0)
+    params = StepParameters(time_step=H, overlap_slop=0.0, tolerance=1e-10, max_iterations=20000)
+    slow = replace(params, slow_recovery_slop=5e-5, slow_recovery_speed=2e-4)
+    kept = make_state(ball, [[0.0, 0.0, 0.5 - 3e-4]])
+    run(kept, params, 50)
+    assert 0.5 - kept.position[0, 2] == pytest.approx(3e-4, abs=1e-12)
+    state = make_state(ball, [[0.0, 0.0, 0.5 - 3e-4]])
+    overlaps, speeds = [], []
+
+    def record(n, s, c, i):
+        overlaps.append(0.5 - s.position[0, 2])
+        speeds.append(s.velocity[0, 2])
+
+    run(state, slow, 600, each=record)
+    assert max(speeds) == pytest.approx(2e-4, rel=1e-6) and min(speeds) >= 0.0
+    assert np.all(np.diff(overlaps) <= 1e-15)
+    assert overlaps[-1] == pytest.approx(5e-5, abs=1e-12) and abs(speeds[-1]) < 1e-12
+    deep = make_state(ball, [[0.0, 0.0, 0.5 - 0.01]])
+    step(deep, slow)
+    assert deep.velocity[0, 2] == pytest.approx(params.recovery_speed, rel=1e-6)
 
 
 def _manifold_gaps(state):

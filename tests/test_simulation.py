@@ -46,6 +46,23 @@ def test_small_run_reaches_certified_equilibrium(settled):
     assert summary["nlgs"]["mean_iterations"] > 0 and summary["steps"] == round(summary["simulated_time"] / 5e-3)
 
 
+def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back_and_is_checked_again(settled, tmp_path):
+    """The settled pile first meets the criteria with overlaps up to 2.3e-5 d, under the default
+    rest slop (5e-5 d): it ends there. With a rest slop of 1e-5 d the same run (the same steps up
+    to then) goes on from that check, pushes its overlaps back to 1e-5 d and ends at rest after a
+    full window more."""
+    config, summary, _ = settled
+    assert summary["end_game"]["rest_recovery_from"] is None and summary["final"]["max_overlap"] > 1e-5
+    tight = config.model_copy(update={"solver": config.solver.model_copy(update={"rest_recovery_slop": 1e-5})})
+    again = run_packing(tight, tmp_path, progress=False)
+    assert again["status"] == STATUS_AT_REST
+    assert again["end_game"]["rest_recovery_from"] == pytest.approx(summary["simulated_time"], abs=1e-9)
+    window = config.equilibrium.window * config.equilibrium.check_interval
+    assert again["simulated_time"] >= summary["simulated_time"] + window - 1e-9
+    assert again["final"]["max_overlap"] < 1.001e-5
+    assert again["equilibrium"]["passed"]
+
+
 def test_timeline_records_every_check_and_the_end_game(settled):
     """timeline.csv: one row per equilibrium check, its columns; the end game started once the
     kinetic criterion fell below solver.damping_below, and from then on the damping (none on the

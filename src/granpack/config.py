@@ -209,6 +209,20 @@ class SolverConfig(_Model):
         ge=0,
         description="Largest separating speed of the overlap recovery, sqrt(g d).",
     )
+    rest_recovery_slop: _Number = Field(
+        default=5e-5,
+        ge=0,
+        description="Overlap a pile at rest keeps, d: when the pile first meets the criteria with a deeper "
+        "overlap, the overlaps deeper than this are pushed back too, at most at `rest_recovery_speed`, and "
+        "the equilibrium window starts again. It bounds the overlaps of the packing written, hence its k.",
+    )
+    rest_recovery_speed: _Number = Field(
+        default=2e-4,
+        ge=0,
+        description="Largest speed of that slow recovery, sqrt(g d): slow enough that the pile stays "
+        "quasi-static (at 1e-3 it did not come back to rest); 0: none (the pile ends at the first pass "
+        "of the window, its overlaps up to recovery_slop).",
+    )
     overlap_slop: _Number = Field(
         default=2e-3,
         ge=0,

@@ -140,6 +140,7 @@ class _Counters:
     correction_iterations: int = 0  # NLGS sweeps of the position corrections
     correction_energy: float = 0.0
     end_game: bool = False  # the end game's damping has started (once set, for good)
+    rest_recovery_from: float | None = None  # simulated time the slow overlap recovery started (for good)
     shakes: int = 0  # shakes given (solver.shake_speed)
     last_shake: float | None = None  # simulated time of the last shake, sqrt(d/g)
     last_step: float = 0.0  # the (sub)step of the last solve, sqrt(d/g) (0: none yet)
@@ -513,6 +514,9 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
             step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
                                   damping=damping)
+            if counters.rest_recovery_from is not None:
+                step_params = replace(step_params, slow_recovery_slop=config.solver.rest_recovery_slop,
+                                      slow_recovery_speed=config.solver.rest_recovery_speed)
             for _ in range(substeps):
                 prediction = predict(state, step_params)
                 t0 = time.perf_counter()
@@ -554,8 +558,14 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window,
                            counters.timeline[-1][_OVERLAP_COLUMN])
                 if counters.passes >= eq.window:
-                    status = STATUS_AT_REST
-                    break
+                    if not _rest_recovery_due(config, counters, contacts):
+                        status = STATUS_AT_REST
+                        break
+                    counters.rest_recovery_from = state.time
+                    counters.passes = 0
+                    note(f"at rest at t = {state.time:.6g} sqrt(d/g) with overlaps up to "
+                         f"{-contacts.gap.min():.2g} d: pushing them back to {config.solver.rest_recovery_slop:g} d "
+                         f"(at most {config.solver.rest_recovery_speed:g} sqrt(g d)), then checking again", lines_only=True)
             if snapshot_every and counters.step % snapshot_every == 0:
                 append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
             if counters.step % checkpoint_every == 0:
@@ -579,6 +589,22 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     return summary
+
+
+def _rest_recovery_due(config: RunConfig, c: _Counters, contacts: ContactSet) -> bool:
+    """Whether a pile that has just met the criteria starts the slow overlap recovery instead of
+    ending: once per run, when it is on (``solver.rest_recovery_speed > 0``) and some overlap is
+    deeper than ``solver.rest_recovery_slop``.
+
+    Why: a pile comes to rest with its loaded contacts overlapping by up to the fast recovery's
+    slop, deepest where the load is largest, and the overlaps weighted by their forces make k (the
+    relative overestimate of the solid fraction). Pushed back at a speed far below that of the
+    settling, they shrink to the slow slop while the pile stays quasi-static; the window then
+    starts again, so the packing written is one at rest with the small overlaps.
+    """
+    s = config.solver
+    return (c.rest_recovery_from is None and s.rest_recovery_speed > 0 and s.recovery_rate > 0
+            and contacts.n_points > 0 and float(-contacts.gap.min()) > s.rest_recovery_slop)
 
 
 def _shake_due(config: RunConfig, c: _Counters, report: EquilibriumReport, time_now: float) -> bool:
@@ -668,7 +694,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "split_steps": c.split_steps,
         "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
         "end_game": {"mode": config.solver.end_game, "started": c.end_game, "kinetic_energy_removed": c.damped_energy,
-                     "shakes": c.shakes},
+                     "shakes": c.shakes, "rest_recovery_from": c.rest_recovery_from},
         "equilibrium": report.as_dict(),
         "final": {  # the last state; total kinetic energy in rho g d^4 (the per-grain criterion: "equilibrium")
             "total_kinetic_energy": kinetic_energy(state),

@@ -99,6 +99,10 @@ class StepParameters:
             (:mod:`granpack.nscd.problem`): an overlap deeper than ``recovery_slop`` (d) is pushed
             back at ``recovery_rate`` of its excess per step, at most at ``recovery_speed``
             (sqrt(g d)); ``recovery_rate`` 0: none.
+        slow_recovery_slop, slow_recovery_speed: its slow tier: an overlap deeper than
+            ``slow_recovery_slop`` (d) is pushed back at ``recovery_rate`` of that excess per step, at
+            most at ``slow_recovery_speed`` (sqrt(g d)); speed 0: none (a pile at rest,
+            :mod:`granpack.simulation`).
         damping: rate γ of a viscous damping of every grain's velocity after the step,
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
             :mod:`granpack.simulation`).
@@ -124,6 +128,8 @@ class StepParameters:
     recovery_slop: float = 5e-4
     recovery_rate: float = 0.2
     recovery_speed: float = 0.05
+    slow_recovery_slop: float = 0.0
+    slow_recovery_speed: float = 0.0
     damping: float = 0.0
     parallel_points: int = 2**62
     nncg: bool = True
@@ -141,8 +147,10 @@ class StepParameters:
             raise ValueError("alert, overlap_slop and warm_tolerance must be >= 0")
         if self.correction_sweeps < 1:
             raise ValueError(f"correction_sweeps must be >= 1, got {self.correction_sweeps}")
-        if not self.recovery_slop >= 0 or not self.recovery_rate >= 0 or not self.recovery_speed >= 0:
-            raise ValueError("recovery_slop, recovery_rate and recovery_speed must be >= 0")
+        if not min(self.recovery_slop, self.recovery_rate, self.recovery_speed, self.slow_recovery_slop,
+                   self.slow_recovery_speed) >= 0:
+            raise ValueError("recovery_slop, recovery_rate, recovery_speed and the slow tier's slop and speed "
+                             "must be >= 0")
         if not self.correction_step > 0:
             raise ValueError(f"correction_step must be > 0, got {self.correction_step}")
 
@@ -270,6 +278,7 @@ def advance(
         restitution=params.restitution, friction=params.friction,
         side=_sides(pr.x_tt, contacts.point[:, 2]) if contacts.n_points >= params.parallel_points else None,
         recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
+        slow_recovery_slop=params.slow_recovery_slop, slow_recovery_speed=params.slow_recovery_speed,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
     r0, n_warm = warm_impulses(

@@ -20,9 +20,11 @@ point α (frozen at the predicted configuration of the step)
                                  e_N \\min(0, u^n_{n,α}) - ρ_α & g_α \\le 0 \\ \\text{(Newton restitution)}
                   \\end{cases}
 
-  with the overlap recovery ``ρ_α = min(v_r, β max(0, -g_α - s_r) / h)``: an overlap deeper than
-  ``s_r`` is pushed back at a fraction β of it per step, at most at the speed ``v_r``
-  (β = 0: none, the plain velocity-level law),
+  with the overlap recovery ``ρ_α = max(min(v_r, β (-g_α - s_r)^+ / h), min(v_s, β (-g_α - s_s)^+ / h))``:
+  an overlap deeper than ``s_r`` is pushed back at a fraction β of its excess per step, at most at
+  the speed ``v_r`` (β = 0: none, the plain velocity-level law); its slow tier, ``s_s < s_r`` and
+  ``v_s << v_r``, pushes the overlaps between the two slops back at no more than ``v_s`` (``v_s`` 0:
+  none; a pile at rest, :mod:`granpack.simulation`),
 
 - the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation),
 - the free velocities ``V_free`` ``(N + 1, 6)`` (world rows ``(v, ω^w)``, see
@@ -119,7 +121,7 @@ def _store_arm(row, col, a, e, inv_iw):
 @jit(parallel=True)
 def _assemble_parallel(
     chunks, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
-    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
 ):
     """Numba: :func:`_assemble_kernel` over ``chunks`` consecutive ranges of manifolds at once (the
     manifolds write disjoint rows, so the result does not depend on ``chunks``)."""
@@ -128,14 +130,14 @@ def _assemble_parallel(
         _assemble_kernel(
             n * c // chunks, n * (c + 1) // chunks, body_i, body_j, shift, normal, point_start, point, gap, x,
             inv_mass, inv_iw, v_start, h, restitution, mu, body, data, offset, tangent, lever_i, lever_j, fdata,
-            with_friction, recovery_slop, recovery_rate, recovery_speed,
+            with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
         )
 
 
 @jit
 def _assemble_kernel(
     m0, m1, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
-    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
 ):
     """Numba: the rows of the points of manifolds ``m0 <= m < m1`` (see :func:`assemble`)."""
     wall = x.shape[0]
@@ -179,9 +181,14 @@ def _assemble_kernel(
                 u0 += cin0 * v_start[i, 3] + cin1 * v_start[i, 4] + cin2 * v_start[i, 5]
                 u0 -= cjn0 * v_start[j, 3] + cjn1 * v_start[j, 4] + cjn2 * v_start[j, 5]
                 offset[k] = restitution * min(0.0, u0)
+                push = 0.0
                 excess = -gap[k] - recovery_slop
                 if recovery_rate > 0.0 and excess > 0.0:
-                    offset[k] -= min(recovery_speed, recovery_rate * excess / h)
+                    push = min(recovery_speed, recovery_rate * excess / h)
+                excess = -gap[k] - slow_slop
+                if recovery_rate > 0.0 and excess > 0.0:
+                    push = max(push, min(slow_speed, recovery_rate * excess / h))
+                offset[k] -= push
             if with_friction:
                 f = fdata[k]
                 f[T0], f[T0 + 1], f[T0 + 2] = t[0], t[1], t[2]
@@ -407,6 +414,8 @@ def assemble(
     recovery_slop: float = 0.0,
     recovery_rate: float = 0.0,
     recovery_speed: float = 0.0,
+    slow_recovery_slop: float = 0.0,
+    slow_recovery_speed: float = 0.0,
 ) -> ContactProblem:
     """Build the contact problem of a step from the detected contacts.
 
@@ -424,6 +433,8 @@ def assemble(
         initial_impulse: ``(P, 3)`` local warm-start impulses, zeros if ``None``.
         recovery_slop, recovery_rate, recovery_speed: ``s_r`` (d), β and ``v_r`` (sqrt(g d)) of the
             overlap recovery (module docstring); ``recovery_rate`` 0: none.
+        slow_recovery_slop, slow_recovery_speed: ``s_s`` (d) and ``v_s`` (sqrt(g d)) of its slow
+            tier (module docstring); ``v_s`` 0: none.
         side: ``(N + 1,)`` 0 or 1 per body, the two parts of the pile a solver may sweep in
             parallel (:mod:`granpack.nscd.nlgs`), or ``None``.
 
@@ -466,6 +477,8 @@ def assemble(
         float(recovery_slop),
         float(recovery_rate),
         float(recovery_speed),
+        float(slow_recovery_slop),
+        float(slow_recovery_speed),
     )
     if initial_impulse is None:
         initial_impulse = np.zeros((p, 3))
