@@ -47,13 +47,19 @@ def test_small_run_reaches_certified_equilibrium(settled):
 
 
 def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back_and_is_checked_again(settled, tmp_path):
-    """The settled pile first meets the criteria with overlaps up to 2.3e-5 d, under the default
-    rest slop (5e-5 d): it ends there. With a rest slop of 1e-5 d the same run (the same steps up
-    to then) goes on from that check, pushes its overlaps back to 1e-5 d and ends at rest after a
-    full window more."""
+    """The settled pile (the slow recovery off, the default) ends where it first meets the
+    criteria, with overlaps up to 2.3e-5 d. With the slow recovery on at a rest slop of 1e-5 d,
+    the same run (the same steps up to then) goes on from that check, pushes its overlaps back to
+    1e-5 d and ends at rest after a full window more. With it on at 5e-5 d, above every overlap,
+    the run ends at the first pass as without it."""
     config, summary, _ = settled
     assert summary["end_game"]["rest_recovery_from"] is None and summary["final"]["max_overlap"] > 1e-5
-    tight = config.model_copy(update={"solver": config.solver.model_copy(update={"rest_recovery_slop": 1e-5})})
+
+    def slow(slop):
+        return config.model_copy(update={"solver": config.solver.model_copy(
+            update={"rest_recovery_slop": slop, "rest_recovery_speed": 2e-4})})
+
+    tight = slow(1e-5)
     again = run_packing(tight, tmp_path, progress=False)
     assert again["status"] == STATUS_AT_REST
     assert again["end_game"]["rest_recovery_from"] == pytest.approx(summary["simulated_time"], abs=1e-9)
@@ -61,6 +67,9 @@ def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back
     assert again["simulated_time"] >= summary["simulated_time"] + window - 1e-9
     assert again["final"]["max_overlap"] < 1.001e-5
     assert again["equilibrium"]["passed"]
+    loose = run_packing(slow(5e-5), tmp_path / "loose", progress=False)
+    assert loose["end_game"]["rest_recovery_from"] is None
+    assert loose["simulated_time"] == summary["simulated_time"]
 
 
 def test_timeline_records_every_check_and_the_end_game(settled):

@@ -245,6 +245,9 @@ def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: 
         f"max |F|/(d^2 P) {eq['max_net_force']:.1e}, wall force / weight {eq['wall_force_over_weight']:.6f}, "
         f"max overlap {summary['final']['max_overlap']:.1e} d"
     )
+    if summary["end_game"].get("rest_recovery_from") is not None:
+        typer.echo(f"first at rest at t = {summary['end_game']['rest_recovery_from']:.2f} sqrt(d/g); its overlaps were "
+                   f"then pushed back to {config.solver.rest_recovery_slop:g} d and the criteria checked again")
     failing = [name for key, name in (("force_ok", "net force"), ("torque_ok", "net torque"), ("energy_ok", "kinetic energy"),
                                        ("wall_ok", "wall force")) if not eq.get(key)]
     if failing:

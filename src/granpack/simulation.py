@@ -565,7 +565,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                     counters.passes = 0
                     note(f"at rest at t = {state.time:.6g} sqrt(d/g) with overlaps up to "
                          f"{-contacts.gap.min():.2g} d: pushing them back to {config.solver.rest_recovery_slop:g} d "
-                         f"(at most {config.solver.rest_recovery_speed:g} sqrt(g d)), then checking again", lines_only=True)
+                         f"(at most {config.solver.rest_recovery_speed:g} sqrt(g d)), then checking again")
             if snapshot_every and counters.step % snapshot_every == 0:
                 append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
             if counters.step % checkpoint_every == 0:
