@@ -509,8 +509,9 @@ def test_overlap_recovery_pushes_a_ball_out_of_the_wall_at_a_bounded_speed_and_s
 def test_slow_overlap_recovery_pushes_an_overlap_between_the_two_slops_back_at_its_own_speed():
     """A ball at rest 3e-4 d into the wall, below the recovery slop (5e-4 d): the velocity law
     alone leaves it there; with the slow tier (slop 5e-5 d, speed 2e-4 sqrt(g d)) it moves out at
-    that speed, never faster, and stops at the slow slop (0.2 of the excess per step at the end). A ball 0.01 d in is still pushed
-    out at the fast tier's speed (the slow tier never slows a deep overlap down)."""
+    that speed, never faster, and stops at the slow slop (0.2 of the excess per step at the end).
+    A ball 0.01 d in is still pushed out at the fast tier's speed (the slow tier never slows a
+    deep overlap down)."""
     ball = Sphere(1.0)
     params = StepParameters(time_step=H, overlap_slop=0.0, tolerance=1e-10, max_iterations=20000)
     slow = replace(params, slow_recovery_slop=5e-5, slow_recovery_speed=2e-4)

@@ -46,7 +46,8 @@ def test_small_run_reaches_certified_equilibrium(settled):
     assert summary["nlgs"]["mean_iterations"] > 0 and summary["steps"] == round(summary["simulated_time"] / 5e-3)
 
 
-def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back_and_is_checked_again(settled, tmp_path):
+def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back_and_is_checked_again(
+        settled, tmp_path):
     """The settled pile (the slow recovery off, the default) ends where it first meets the
     criteria, with overlaps up to 2.3e-5 d. With the slow recovery on at a rest slop of 1e-5 d,
     the same run (the same steps up to then) goes on from that check, pushes its overlaps back to

@@ -118,10 +118,20 @@ def _store_arm(row, col, a, e, inv_iw):
     return c0, c1, c2, k0, k1, k2
 
 
+@jit
+def _recovery_push(excess, rate, speed, h):
+    """Numba: the separating speed one tier of the overlap recovery asks, ``min(v, β excess / h)``
+    for an overlap ``excess`` d beyond its slop, 0 for none or for β = 0."""
+    if rate > 0.0 and excess > 0.0:
+        return min(speed, rate * excess / h)
+    return 0.0
+
+
 @jit(parallel=True)
 def _assemble_parallel(
     chunks, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
-    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
+    slow_slop, slow_speed,
 ):
     """Numba: :func:`_assemble_kernel` over ``chunks`` consecutive ranges of manifolds at once (the
     manifolds write disjoint rows, so the result does not depend on ``chunks``)."""
@@ -137,7 +147,8 @@ def _assemble_parallel(
 @jit
 def _assemble_kernel(
     m0, m1, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
-    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
+    body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
+    slow_slop, slow_speed,
 ):
     """Numba: the rows of the points of manifolds ``m0 <= m < m1`` (see :func:`assemble`)."""
     wall = x.shape[0]
@@ -181,14 +192,8 @@ def _assemble_kernel(
                 u0 += cin0 * v_start[i, 3] + cin1 * v_start[i, 4] + cin2 * v_start[i, 5]
                 u0 -= cjn0 * v_start[j, 3] + cjn1 * v_start[j, 4] + cjn2 * v_start[j, 5]
                 offset[k] = restitution * min(0.0, u0)
-                push = 0.0
-                excess = -gap[k] - recovery_slop
-                if recovery_rate > 0.0 and excess > 0.0:
-                    push = min(recovery_speed, recovery_rate * excess / h)
-                excess = -gap[k] - slow_slop
-                if recovery_rate > 0.0 and excess > 0.0:
-                    push = max(push, min(slow_speed, recovery_rate * excess / h))
-                offset[k] -= push
+                offset[k] -= max(_recovery_push(-gap[k] - recovery_slop, recovery_rate, recovery_speed, h),
+                                 _recovery_push(-gap[k] - slow_slop, recovery_rate, slow_speed, h))
             if with_friction:
                 f = fdata[k]
                 f[T0], f[T0 + 1], f[T0 + 2] = t[0], t[1], t[2]
