@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from granpack.campaign import campaign_from_dict, load_campaign, run_campaign
-from granpack.campaign.runner import estimated_cost, longest_first
+from granpack.campaign.runner import estimated_cost, longest_first, selected_runs
 from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row, summary_table, write_task
 from granpack.cli import main
 from granpack.config import load_config_dict
@@ -244,6 +244,36 @@ def test_finished_runs_and_tables(tmp_path):
     assert summary["n_done"].tolist() == [1, 0] and summary["n_failed"].tolist() == [0, 1]
     assert summary.loc[0, "solid_fraction.bulk.mean"] == 0.62
     assert math.isnan(summary.loc[0, "solid_fraction.bulk.std"])  # one replica
+
+
+def test_mixture_patterns_choose_the_runs_and_the_tables_list_every_run(tmp_path, capsys):
+    spec = campaign_from_dict(_tiny_dict())
+    assert [r.mixture for r in selected_runs(spec, ["bi-*"])] == ["bi-30", "bi-30"]
+    assert [r.mixture for r in selected_runs(spec, ["mono", "bi-30"])] == ["mono", "mono", "bi-30", "bi-30"]
+    assert selected_runs(spec, None) == spec.runs
+    with pytest.raises(InputError, match=r"--mixture: 'flat-\*' matches no mixture of the campaign \(mixtures: mono, bi-30\)"):
+        selected_runs(spec, ["mono", "flat-*"])
+    # the selected mixture's runs are finished: nothing to run, no cluster; mono's runs stay missing
+    for run in spec.runs[2:]:
+        folder = tmp_path / run.folder
+        folder.mkdir(parents=True)
+        (folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, 0.7)))
+        write_task(folder, run)
+    report = run_campaign(spec, tmp_path, progress=False, mixtures=["bi-*"])
+    assert (report.n_runs, report.n_skipped, report.n_done, report.n_failed) == (2, 2, 2, 0)
+    assert report.runs["status"].tolist() == ["missing", "missing", "done", "done"]
+    assert pd.read_csv(tmp_path / "runs.csv")["status"].tolist() == ["missing", "missing", "done", "done"]
+
+
+def test_campaign_command_unknown_mixture_exits_2_and_writes_nothing(tmp_path, capsys):
+    path = tmp_path / "c.toml"
+    path.write_text(TINY)
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(path), "--out", str(tmp_path / "out"), "--mixture", "sphere*"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: --mixture: 'sphere*' matches no mixture of the campaign (mixtures: mono, bi-30)"
+    assert not (tmp_path / "out").exists()
 
 
 # ----------------------------------------------------------------------------- end to end

@@ -334,6 +334,10 @@ def campaign(
     out: Path = typer.Option(..., "--out", help="Output folder."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Workers of the local Dask cluster."),
+    mixture: Optional[list[str]] = typer.Option(
+        None, "--mixture", help="Run only the mixtures matching this name or shell pattern, e.g. 'spheres-*' (repeatable; "
+        "default all). The tables still list every run."
+    ),
 ) -> None:
     """A sweep of mixtures x replicas; rerunning skips finished runs and resumes interrupted ones.
 
@@ -345,15 +349,17 @@ def campaign(
 
     loaded = load_campaign(spec)
     try:
-        report = run_campaign(loaded, out, scheduler=scheduler, workers=workers)
+        report = run_campaign(loaded, out, scheduler=scheduler, workers=workers, mixtures=mixture or None)
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
             raise
+        again = "".join(f" --mixture '{m}'" for m in mixture or [])
         raise _Stop(f"interrupted; finished runs and the checkpoints of unfinished ones are kept in {out}: continue "
-                    f"with: granpack campaign {spec} --out {out} (each unfinished run resumes from its checkpoint, "
+                    f"with: granpack campaign {spec} --out {out}{again} (each unfinished run resumes from its checkpoint, "
                     "as with run --resume)", 130) from None
+    chosen = f" of mixtures {', '.join(mixture)}" if mixture else ""
     typer.echo(
-        f"{report.n_runs} runs: {report.n_done} done ({report.n_skipped} already finished), "
+        f"{report.n_runs} runs{chosen}: {report.n_done} done ({report.n_skipped} already finished), "
         f"{report.n_failed} failed; tables in {out / 'runs.csv'} and {out / 'summary.csv'}"
     )
     if report.n_failed:

@@ -7,7 +7,10 @@ Each task runs :func:`granpack.simulation.run_packing` then
 - skips finished runs (valid ``analysis.json`` for the same run config);
 - only analyses a run whose simulation completed (``summary.json`` and ``final.gsd`` present);
 - resumes a run from its checkpoint when it has one, else starts it afresh;
-- starts afresh a run whose folder was made for another config (its old outputs are removed).
+- starts afresh a run whose folder was made for another config (its old outputs are removed);
+- runs only the mixtures asked for, if any (``mixtures``: shell patterns of their names), so that
+  machines without a Dask cluster in common can share a campaign, each taking its own mixtures
+  into a copy of the output folder; the tables list every run (``missing`` for those not run).
 
 A task that fails is retried once; if it fails again, its traceback is saved as ``error.txt`` in
 its folder and its row in ``runs.csv`` says ``failed``; the other tasks go on.
@@ -21,6 +24,7 @@ system that the workers share.
 from __future__ import annotations
 
 import contextlib
+import fnmatch
 import logging
 import os
 import signal
@@ -55,7 +59,7 @@ from granpack.io.atomic import output_folder
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["CampaignReport", "run_campaign", "run_task", "MAX_ATTEMPTS"]
+__all__ = ["CampaignReport", "run_campaign", "run_task", "selected_runs", "MAX_ATTEMPTS"]
 
 #: attempts per task (the first run and one retry)
 MAX_ATTEMPTS = 2
@@ -71,7 +75,7 @@ class CampaignReport:
     """What a campaign command did.
 
     Attributes:
-        n_runs: tasks in the campaign.
+        n_runs: tasks this call was asked for (the whole campaign, or the mixtures selected).
         n_skipped: runs already finished before this call.
         n_done: runs finished now (computed by this call, or skipped).
         n_failed: runs that failed twice in this call.
@@ -288,6 +292,22 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
     return done, failed
 
 
+def selected_runs(spec: CampaignSpec, mixtures: list[str] | None) -> tuple[RunSpec, ...]:
+    """The runs of the mixtures whose names match one of the shell patterns ``mixtures`` (all
+    runs when ``None``), in the campaign's order.
+
+    Raises:
+        InputError: a pattern that matches no mixture (the message lists the mixtures).
+    """
+    if mixtures is None:
+        return spec.runs
+    names = [m.name for m in spec.mixtures]
+    for pattern in mixtures:
+        if not fnmatch.filter(names, pattern):
+            raise InputError(f"--mixture: {pattern!r} matches no mixture of the campaign (mixtures: {', '.join(names)})")
+    return tuple(run for run in spec.runs if any(fnmatch.fnmatchcase(run.mixture, p) for p in mixtures))
+
+
 def run_campaign(
     spec: CampaignSpec,
     out_dir: str | Path,
@@ -295,6 +315,7 @@ def run_campaign(
     scheduler: str | None = None,
     workers: int | None = None,
     progress: bool = True,
+    mixtures: list[str] | None = None,
 ) -> CampaignReport:
     """Run every unfinished (mixture, replica) of ``spec`` and write the result tables.
 
@@ -306,13 +327,18 @@ def run_campaign(
             a local cluster.
         workers: processes of the local cluster (default: CPU count, at most one per task).
         progress: show a progress bar and one line per finished run.
+        mixtures: run only the mixtures whose names match one of these shell patterns
+            (``"spheres-*"``), e.g. to share a campaign between machines that have no Dask
+            cluster in common, each with its own patterns and the same output folder (copied
+            together afterwards); ``None``: every mixture. The tables always list every run.
 
     Returns:
         The report with both tables. The tables are written even when interrupted.
 
     Raises:
-        InputError: bad ``workers``/``scheduler`` combination, an unreachable scheduler, or an
-            ``out_dir`` that is a file or cannot be created.
+        InputError: bad ``workers``/``scheduler`` combination, a pattern that matches no
+            mixture, an unreachable scheduler, or an ``out_dir`` that is a file or cannot be
+            created.
         KeyboardInterrupt: Ctrl-C; the tables are written, the runs' checkpoints are kept, and a
             new call goes on from them.
     """
@@ -320,12 +346,13 @@ def run_campaign(
         raise InputError(f"--workers must be >= 1 (got {workers})")
     if workers is not None and scheduler is not None:
         raise InputError("--workers applies to the local cluster only; leave it out with --scheduler")
+    selected = selected_runs(spec, mixtures)
     out_dir = Path(out_dir).resolve()
     output_folder(out_dir)
     if spec.source_text:
         (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
-    todo = [run for run in spec.runs if not is_finished(out_dir, run)]
-    n_skipped = len(spec.runs) - len(todo)
+    todo = [run for run in selected if not is_finished(out_dir, run)]
+    n_skipped = len(selected) - len(todo)
     errors: dict[Path, str] = {}
     done = failed = 0
     try:
@@ -336,7 +363,7 @@ def run_campaign(
         table = runs_table(out_dir, spec.runs, errors)
         summary = write_tables(out_dir, table)
     return CampaignReport(
-        n_runs=len(spec.runs),
+        n_runs=len(selected),
         n_skipped=n_skipped,
         n_done=n_skipped + done,
         n_failed=failed,
