@@ -102,7 +102,8 @@ def test_check_prints_mixture_table(tmp_path, capsys, monkeypatch):
     assert err.startswith("warning: the settled pile will stand about 1.1 d high (solid fraction about 0.72")
     assert err.count("\n") == 1
     for text in ("pinacoid-1-1x1", "pinacoid-0.333333-1x1", "239", "2761", "0.700000", "0.700347", "0.299653",
-                 "N = 3000", "lateral size = 8 d", "time step 0.002", "alert distance = 0.02 d (automatic)"):
+                 "N = 3000", "lateral size = 8 d", "time step 0.002", "alert distance = 0.02 d (automatic)",
+                 "net force below 0.0001 d^2 P", "kinetic criterion below 1e-08 d^3 P", "at 5 checks in a row"):
         assert text in out, text
 
 

@@ -167,7 +167,10 @@ def check(
                   f"iterations {solver.max_iterations}, theta {solver.theta:g}, check every {solver.check_every} sweeps, "
                   f"overlaps pushed back above {solver.recovery_slop:g} d, projected above {solver.overlap_slop:g} d "
                   f"({solver.pour_overlap_slop:g} while grains move fast)", markup=False)
-    console.print(f"equilibrium: max time {eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
+    console.print(f"equilibrium: net force below {eq.force_tolerance:g} d^2 P, torque below {eq.torque_tolerance:g} d^3 P, "
+                  f"kinetic criterion below {eq.kinetic_tolerance:g} d^3 P, wall force within {eq.wall_tolerance:g} of the "
+                  f"weight, at {eq.window} checks in a row (one every {eq.check_interval:g} sqrt(d/g)); max time "
+                  f"{eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
                   f"{cfg.deposit.lateral} lateral boundaries", markup=False)
     if warning:
         _note(f"warning: {warning}")
