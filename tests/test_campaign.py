@@ -246,7 +246,7 @@ def test_finished_runs_and_tables(tmp_path):
     assert math.isnan(summary.loc[0, "solid_fraction.bulk.std"])  # one replica
 
 
-def test_mixture_patterns_choose_the_runs_and_the_tables_list_every_run(tmp_path, capsys):
+def test_mixture_patterns_choose_the_runs_and_the_tables_list_every_run(tmp_path):
     spec = campaign_from_dict(_tiny_dict())
     assert [r.mixture for r in selected_runs(spec, ["bi-*"])] == ["bi-30", "bi-30"]
     assert [r.mixture for r in selected_runs(spec, ["mono", "bi-30"])] == ["mono", "mono", "bi-30", "bi-30"]

@@ -303,7 +303,7 @@ def selected_runs(spec: CampaignSpec, mixtures: list[str] | None) -> tuple[RunSp
         return spec.runs
     names = [m.name for m in spec.mixtures]
     for pattern in mixtures:
-        if not fnmatch.filter(names, pattern):
+        if not any(fnmatch.fnmatchcase(name, pattern) for name in names):
             raise InputError(f"--mixture: {pattern!r} matches no mixture of the campaign (mixtures: {', '.join(names)})")
     return tuple(run for run in spec.runs if any(fnmatch.fnmatchcase(run.mixture, p) for p in mixtures))
 
