@@ -1,5 +1,6 @@
 """The packing protocol end to end: ``run_packing`` and ``granpack run`` / ``granpack demo`` files."""
 
+import math
 from importlib.resources import files
 from pathlib import Path
 
@@ -99,6 +100,28 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
 
 
+def test_timeline_energy_budget_has_no_source_but_the_corrections(settled):
+    """Between two checks the total energy (kinetic_energy_total + the potential energy's change)
+    rises by no more than the position correction added; the rest is what the contacts and the
+    end game's damping took. Over the pour the contacts dissipate (a plastic pour of 100 spheres
+    loses energy of order one m g d); the first row has no previous check (NaN). Tolerance: the
+    six significant digits of the CSV."""
+    import csv
+
+    _, _, out = settled
+    with (out / simulation.TIMELINE_FILE).open(newline="") as f:
+        rows = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    assert math.isnan(rows[0]["potential_energy_change"])
+    dissipated = 0.0
+    for before, row in zip(rows, rows[1:]):
+        kinetic_change = row["kinetic_energy_total"] - before["kinetic_energy_total"]
+        gain = row["potential_energy_change"] + kinetic_change - row["correction_energy"] + row["damped_energy"]
+        scale = max(before["kinetic_energy_total"], row["kinetic_energy_total"], abs(row["potential_energy_change"]))
+        assert gain <= 1e-5 * scale + 1e-10
+        dissipated -= gain
+    assert dissipated > 1.0
+
+
 def test_pour_corrects_positions_every_interval_steps_only(tmp_path):
     """solver.pour_correction_interval = 5: while the alert distance is raised (grains falling fast)
     only every fifth step may be corrected, so 80 pinacoids poured for 4 sqrt(d/g) (800 steps, most
@@ -191,6 +214,43 @@ def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
     assert resumed["steps"] == whole["steps"] and resumed["nlgs"] == whole["nlgs"]
     # resuming a finished run returns its summary without running again
     assert run_packing(config, out, resume=True, progress=False) == read_json(out / "summary.json")
+
+
+def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_path, monkeypatch):
+    """A checkpoint whose timeline rows lack ``potential_energy_change`` (and its running total)
+    resumes: those rows, and the first row after them, get NaN for it; later rows have it."""
+    import csv
+    from dataclasses import replace
+
+    from granpack.io.gsd import write_packing
+
+    config = sphere_config(n=40, max_time=2.0)
+    advance = simulation.advance
+    calls = {"n": 0}
+
+    def dying_advance(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 250:
+            raise Killed
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(simulation, "advance", dying_advance)
+    with pytest.raises(Killed):
+        run_packing(config, tmp_path, progress=False)
+    monkeypatch.setattr(simulation, "advance", advance)
+    saved = read_packing(tmp_path / "checkpoint.gsd")
+    counters = dict(saved.metadata["counters"])
+    column = simulation.TIMELINE_COLUMNS.index("potential_energy_change")
+    counters["timeline"] = [row[:column] + row[column + 1:-1] for row in counters["timeline"]]
+    old_rows = len(counters["timeline"])
+    assert old_rows > 0
+    write_packing(tmp_path / "checkpoint.gsd", replace(saved, metadata={**saved.metadata, "counters": counters}))
+
+    run_packing(config, tmp_path, resume=True, progress=False)
+    with (tmp_path / simulation.TIMELINE_FILE).open(newline="") as f:
+        changes = [float(row["potential_energy_change"]) for row in csv.DictReader(f)]
+    assert all(math.isnan(v) for v in changes[: old_rows + 1])
+    assert len(changes) > old_rows + 1 and not any(math.isnan(v) for v in changes[old_rows + 1:])
 
 
 def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch):

@@ -89,7 +89,7 @@ from granpack.io.atomic import output_folder, write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.mixture import Mixture
-from granpack.nscd import StepParameters, advance, kinetic_energy, predict, required_alert
+from granpack.nscd import StepParameters, advance, kinetic_energy, potential_energy, predict, required_alert
 from granpack.packing import Packing
 from granpack.rotations import random_quaternions
 from granpack.state import ParticleState
@@ -109,7 +109,7 @@ TIMELINE_FILE = "timeline.csv"
 #: columns of ``timeline.csv``, one row per equilibrium check; counts and sums over the interval
 #: since the previous check, figures of the equilibrium test at the check
 TIMELINE_COLUMNS = (
-    "time", "step", "kinetic_energy_total", "kinetic_criterion", "max_net_force", "max_net_torque",
+    "time", "step", "kinetic_energy_total", "potential_energy_change", "kinetic_criterion", "max_net_force", "max_net_torque",
     "wall_force_over_weight", "nlgs_tolerance", "mean_sweeps", "max_sweeps", "unconverged_steps",
     "corrected_steps", "correction_sweeps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
     "wall_seconds", "cpu_seconds",
@@ -268,7 +268,21 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
                           population=s.population, position=s.position, quaternion=s.quaternion,
                           velocity=s.velocity, omega=s.omega, time=s.time)
     counters = _Counters(**meta["counters"])
+    counters.timeline = [_current_layout(row) for row in counters.timeline]
     return state, saved.contacts, counters
+
+
+#: length of a timeline row (columns, then running totals) in checkpoints written before the
+#: potential energy was recorded
+_ROW_WITHOUT_POTENTIAL = 27
+
+
+def _current_layout(row: list) -> list:
+    """A checkpoint's timeline row in today's layout: a row written before ``potential_energy_change``
+    existed gets NaN for it and for its running total, so that such a run resumes."""
+    if len(row) != _ROW_WITHOUT_POTENTIAL:
+        return row
+    return [*row[:3], math.nan, *row[3:], math.nan]
 
 
 #: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
@@ -634,12 +648,13 @@ def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, repo
                   tolerance: float) -> None:
     """Append the row of this check to ``c.timeline`` (interval sums from the previous row's totals)."""
     totals = (c.solves, c.iterations_total, c.unconverged_steps, c.correction_steps, c.correction_iterations,
-              c.correction_energy, c.damped_energy)
-    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0,) * len(totals)
+              c.correction_energy, c.damped_energy, potential_energy(state))
+    # the first check has no previous potential energy: its change is NaN
+    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0,) * (len(totals) - 1) + (math.nan,)
     d = [a - b for a, b in zip(totals, previous)]
     gaps = contacts.gap
     c.timeline.append([
-        state.time, c.step, kinetic_energy(state), report.kinetic_energy, report.max_net_force,
+        state.time, c.step, kinetic_energy(state), d[7], report.kinetic_energy, report.max_net_force,
         report.max_net_torque, report.wall_force_over_weight, tolerance, d[1] / max(d[0], 1), c.interval_max_sweeps,
         d[2], d[3], d[4] / max(d[0], 1), d[5], d[6], contacts.n_manifolds, contacts.n_points,
         float(max(0.0, -gaps.min())) if len(gaps) else 0.0, c.wall_seconds, c.cpu_seconds, *totals,
