@@ -1,0 +1,96 @@
+"""The study campaign's finished runs, kept in the repository so the campaign can span machines.
+
+`examples/study.toml` is some 45 CPU hours of pinacoid runs: more than one machine or one
+session gives. A finished run is defined by small files (``granpack.campaign.store``: a valid
+``analysis.json`` and the ``task.json`` of the same run config); with ``summary.json`` and
+``timeline.csv`` beside them they hold every figure the campaign's tables and ``granpack
+figures`` read. This script copies those files (not ``final.gsd``) of every finished run between
+a campaign folder and ``benchmarks/study/``:
+
+- ``save OUT``: the finished runs of campaign folder ``OUT`` into ``benchmarks/study/``;
+- ``restore OUT``: the kept runs into ``OUT``, where ``granpack campaign examples/study.toml
+  --out OUT`` then skips them and runs the others;
+- ``table OUT``: a markdown table, one row per run of ``OUT`` that has an ``analysis.json``
+  (bulk solid fraction, N, Ns / Nd / Nt, Nc, rattlers, Q00 with its isotropic baseline, k,
+  status and time to rest, CPU minutes).
+
+Usage::
+
+    python benchmarks/study_runs.py restore /work/study
+    granpack campaign examples/study.toml --out /work/study --workers 2 --mixture 'pinacoids-*'
+    python benchmarks/study_runs.py save /work/study
+    python benchmarks/study_runs.py table /work/study
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+KEPT = Path(__file__).resolve().parent / "study"
+#: the files of a finished run that are kept (final.gsd, some MB, is not)
+FILES = ("task.json", "summary.json", "analysis.json", "timeline.csv")
+
+
+def _run_folders(root: Path) -> list[Path]:
+    """Run folders ``root/<mixture>/seed-<s>`` holding an ``analysis.json``, sorted."""
+    return sorted(p.parent for p in root.glob("*/seed-*/analysis.json"))
+
+
+def _copy_runs(source: Path, target: Path) -> int:
+    copied = 0
+    for run in _run_folders(source):
+        dest = target / run.relative_to(source)
+        dest.mkdir(parents=True, exist_ok=True)
+        for name in FILES:
+            if (run / name).is_file():
+                shutil.copy2(run / name, dest / name)
+        copied += 1
+    return copied
+
+
+def _f(value, fmt: str) -> str:
+    """``value`` formatted, or ``–`` where the analysis left it undefined (None or NaN)."""
+    return "–" if value is None or value != value else format(value, fmt)
+
+
+def _row(run: Path) -> str:
+    a = json.loads((run / "analysis.json").read_text())
+    s = json.loads((run / "summary.json").read_text()) if (run / "summary.json").is_file() else {}
+    phi, c, o = a["solid_fraction"], a["coordination"], a["order"]
+    base = o.get("isotropic_baseline") or {}
+    q00 = f"{_f(o.get('Q00'), '.3f')} ({_f(base.get('Q00'), '.3f')} ± {_f(base.get('Q00_std'), '.3f')})"
+    at = f", t = {s['simulated_time']:.2f}" if s else ""
+    cpu = _f(s["cpu_time"] / 60, ".0f") if s.get("cpu_time") else ""
+    return (f"| {run.parent.name} | {run.name.removeprefix('seed-')} | {a['n_particles']} | {s.get('status', '?')}{at} | "
+            f"{_f(phi['bulk'], '.4f')} ± {_f(phi['std'], '.4f')} | {_f(c['N'], '.2f')} | "
+            f"{_f(c['Ns'], '.2f')} / {_f(c['Nd'], '.2f')} / {_f(c['Nt'], '.2f')} | {_f(c['Nc'], '.2f')} | "
+            f"{_f(c['rattler_fraction'], '.1%')} | {q00} | {_f(a['interpenetration'].get('expansion_k'), '.1e')} | {cpu} |")
+
+
+def table(root: Path) -> str:
+    lines = ["| mixture | seed | grains | status | bulk phi | N | Ns / Nd / Nt | Nc | rattlers | Q00 (isotropic) | k | CPU min |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [_row(run) for run in _run_folders(root)]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("action", choices=("save", "restore", "table"))
+    parser.add_argument("campaign", type=Path, help="the campaign output folder")
+    args = parser.parse_args(argv)
+    if args.action == "save":
+        print(f"kept {_copy_runs(args.campaign, KEPT)} finished runs in {KEPT}", file=sys.stderr)
+    elif args.action == "restore":
+        print(f"restored {_copy_runs(KEPT, args.campaign)} finished runs into {args.campaign}", file=sys.stderr)
+    else:
+        print(table(args.campaign))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
