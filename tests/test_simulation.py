@@ -379,7 +379,7 @@ def test_step_alert_splits_the_step_when_the_cell_cannot_hold_the_alert():
     assert simulation.step_alert(state, 0.02, 5e-3, 0.05) == (0.02, 1)
 
 
-def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_but_not_of_a_sphere():
+def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_in_reach_of_something_but_not_of_a_sphere():
     pinacoid = load_config_dict({
         "n_particles": 2, "lateral_size": 4.0,
         "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [2.0, 3.0], "volume_fraction": 1.0}],
@@ -388,8 +388,19 @@ def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_but_not_of_a_s
     state.velocity[:] = 0.0
     state.omega[:] = 0.0
     state.omega[1] = [0.0, 30.0, 40.0]  # |ω| h = 0.25 rad per step of 5e-3
-    assert simulation.step_alert(state, 0.02, 5e-3, 10.0, max_rotation=0.05)[1] == 5
-    assert simulation.step_alert(state, 0.02, 5e-3, 10.0)[1] == 1  # no bound on the turn
+    radius = state.radius[0]
+    state.position[0] = [1.0, 1.0, 3.0]
+    state.position[1] = [1.0, 1.0 + 2 * radius + 0.3, 3.0]  # circumscribed spheres 0.3 d apart
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5)[1] == 1  # no bound on the turn
+    # in free flight: 0.8 d is more than the largest alert (0.5) plus what the pair can close in
+    # the step (1.5 x 5e-3 x (R |ω| + 2 h) = 0.19 for R = 0.5), so the turn cannot touch anything
+    state.position[1] = [1.0, 1.0 + 2 * radius + 0.8, 3.0]
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
+    state.position[1] = [3.0, 3.0, radius + 0.6]  # far from the other grain, within reach of the wall
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
+    state.position[1, 2] = 2.0  # in free flight
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
     spheres, _ = simulation.initial_state(sphere_config(n=2))
     spheres.velocity[:] = 0.0
     spheres.omega[0] = [0.0, 30.0, 40.0]  # a sphere's gaps do not depend on its rotation
