@@ -1,6 +1,7 @@
 """The packing protocol end to end: ``run_packing`` and ``granpack run`` / ``granpack demo`` files."""
 
 import math
+from dataclasses import replace
 from importlib.resources import files
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from granpack.config import load_config, load_config_dict
 from granpack.equilibrium import check_equilibrium
 from granpack.io.gsd import read_packing
 from granpack.io.json import read_json, to_jsonable
+from granpack.mixture import Mixture
 from granpack.simulation import STATUS_AT_REST, STATUS_NOT_AT_REST, run_packing
 
 
@@ -220,7 +222,6 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
     """A checkpoint whose timeline rows lack ``potential_energy_change`` (and its running total)
     resumes: those rows, and the first row after them, get NaN for it; later rows have it."""
     import csv
-    from dataclasses import replace
 
     from granpack.io.gsd import write_packing
 
@@ -401,6 +402,16 @@ def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_in_reach_of_so
     assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
     state.position[1, 2] = 2.0  # in free flight
     assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
+    state.position[1] = [1.0, 1.0 + 2 * radius + 0.3, 3.0]
+    state.omega[1] = [0.0, 0.0, 17.0]  # 0.085 rad per step: two substeps for R = d/2 ...
+    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 2
+    small = replace(state, shapes=Mixture.from_config(load_config_dict({
+        "n_particles": 2, "lateral_size": 4.0,
+        "populations": [{"shape": "pinacoid", "size": 1 / 3, "aspect": [2.0, 3.0], "volume_fraction": 1.0}],
+    })).particle_shape_table())
+    assert small.radius[1] == pytest.approx(1 / 6)
+    # ... one for R = d/6: 0.085 sqrt(1/3) = 0.049 rad scaled, the same surface deviation as 0.049 rad at d/2
+    assert simulation.step_alert(small, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
     spheres, _ = simulation.initial_state(sphere_config(n=2))
     spheres.velocity[:] = 0.0
     spheres.omega[0] = [0.0, 30.0, 40.0]  # a sphere's gaps do not depend on its rotation

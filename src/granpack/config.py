@@ -186,9 +186,11 @@ class SolverConfig(_Model):
     max_rotation: _Number = Field(
         default=0.05,
         gt=0,
-        description="Largest rotation of a polyhedron in one step, rad: a step in which some grain would turn "
-        "further is split into substeps. The gaps are held linearised in the velocities, and a turn by phi moves "
-        "a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for 0.05 rad and R = 0.5 d).",
+        description="Largest rotation in one step of a polyhedron of circumscribed radius R = 0.5 d, rad (a grain "
+        "of radius R may turn by max_rotation sqrt(0.5 d / R)): a step in which some grain in reach of another "
+        "grain or the wall would turn further is split into substeps. The gaps are held linearised in the "
+        "velocities, and a turn by phi moves a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for "
+        "0.05 rad and R = 0.5 d).",
     )
     check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
     recovery_slop: _Number = Field(

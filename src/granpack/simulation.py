@@ -53,9 +53,10 @@ Rotation per step. The contact law holds the gaps linearised in the velocities; 
 turns by φ in one step moves its surface off that tangent path by up to ``R φ²/2``, an overlap the
 velocity law never saw coming (and a neighbouring face that turns into contact was not in the
 step's manifold at all). Impacts spin thin grains at 30-50 rad/sqrt(d/g), 0.15-0.25 rad per step
-of 5e-3. So a step is also split into at least ``ceil(h max_p |ω_p| / solver.max_rotation)``
-substeps, over the polyhedra that may touch a grain or the wall during the step (a sphere's gaps
-do not depend on its rotation, and a grain in free flight has no gap to keep).
+of 5e-3. So a step is also split into at least ``ceil(h max_p |ω_p| sqrt(2 R_p) / solver.max_rotation)``
+substeps (R_p in d: the same surface deviation for every size), over the polyhedra that may touch a
+grain or the wall during the step (a sphere's gaps do not depend on its rotation, and a grain in
+free flight has no gap to keep).
 
 Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
 grows frame by frame and is cut back to the checkpoint on resume):
@@ -184,17 +185,17 @@ def step_alert(state: ParticleState, base: float, time_step: float, ceiling: flo
     """Alert distance (d) and number of substeps of the next step (module docstring).
 
     ``need = _ALERT_MARGIN *`` :func:`~granpack.nscd.required_alert` ``(h)``; the step is split
-    into ``k = max(ceil(need / ceiling), ceil(h max |ω| / max_rotation))`` substeps of ``h/k``
-    (the largest ``|ω|`` over the polyhedra that may touch something during the step,
-    :func:`_spin_in_reach`, rad/sqrt(d/g); a substep closes at most ``need/k``: the bound is
-    ``2 h s + h^2``), and the alert distance is ``base 2^j`` covering ``need/k``, at most
-    ``ceiling``.
+    into ``k = max(ceil(need / ceiling), ceil(φ / max_rotation))`` substeps of ``h/k``, with ``φ``
+    the largest turn in the step of a polyhedron that may touch something during it, scaled to a
+    grain of circumscribed radius d/2 (:func:`_turn_in_reach`; a substep closes at most
+    ``need/k``: the bound is ``2 h s + h^2``), and the alert distance is ``base 2^j`` covering
+    ``need/k``, at most ``ceiling``.
     """
     need = _ALERT_MARGIN * required_alert(state, time_step)
     substeps = max(1, math.ceil(need / ceiling - 1e-12))
     if math.isfinite(max_rotation):
-        spin = _spin_in_reach(state, time_step, ceiling, max_rotation)
-        substeps = max(substeps, math.ceil(time_step * spin / max_rotation - 1e-12))
+        turn = _turn_in_reach(state, time_step, ceiling, max_rotation)
+        substeps = max(substeps, math.ceil(turn / max_rotation - 1e-12))
     need /= substeps
     if need <= base:
         return base, substeps
@@ -202,34 +203,37 @@ def step_alert(state: ParticleState, base: float, time_step: float, ceiling: flo
     return min(level, ceiling), substeps
 
 
-def _spin_in_reach(state: ParticleState, time_step: float, ceiling: float, max_rotation: float) -> float:
-    """Largest ``|ω|`` (rad/sqrt(d/g)) of the polyhedra turning by more than ``max_rotation`` in a
-    step of ``time_step`` that may come within the alert distance of another grain or the wall
-    during it; 0 if none.
+def _turn_in_reach(state: ParticleState, time_step: float, ceiling: float, max_rotation: float) -> float:
+    """Largest scaled turn ``φ_p = h |ω_p| sqrt(R_p / (d/2))`` (rad) above ``max_rotation`` of the
+    polyhedra that may come within the alert distance of another grain or the wall during the
+    step of ``time_step``; 0 if none.
 
-    Why: the rotation bound is there for the contacts (a turning surface leaves the linearised
-    path the contact law holds it to), and a grain in free flight has none: a small grain thrown
-    up spinning at 50 rad/sqrt(d/g) above a bidisperse pile split every step of the whole pile
-    into six for as long as it flew. A grain is in free flight when, for every other grain q, the
-    centres' distance minus both circumscribed radii exceeds ``ceiling`` (the largest alert
-    distance a step can take) plus what both can close in the step,
-    ``_ALERT_MARGIN (h (s_p + s_q) + h^2)`` with ``s = |v| + R |ω|`` (the bound of
-    :func:`~granpack.nscd.required_alert`), and its height above the wall exceeds ``R_p + ceiling``
-    plus its own share. Spinning grains are examined fastest first; the first that is not free
-    sets the figure.
+    Why: the rotation bound is there for the contacts. A turn by ``h |ω|`` moves a grain's surface
+    off the linearised path the contact law holds it to by up to ``R (h |ω|)^2 / 2``; the scaled
+    turn gives every grain the deviation a grain of radius d/2 gets at ``max_rotation``, so a
+    small grain (d/3: R = d/6) may turn sqrt(3) times further. A grain in free flight has no
+    contact to keep: a small grain thrown up spinning at 50 rad/sqrt(d/g) above a bidisperse pile
+    split every step of the whole pile into six for as long as it flew. A grain is in free flight
+    when, for every other grain q, the centres' distance minus both circumscribed radii exceeds
+    ``ceiling`` (the largest alert distance a step can take) plus what both can close in the step,
+    ``_ALERT_MARGIN h (s_p + s_q + 2h)`` with ``s = |v| + R |ω|`` (the bound of
+    :func:`~granpack.nscd.required_alert`), and its height above the wall exceeds
+    ``R_p + ceiling + _ALERT_MARGIN h (s_p + h)``. Grains are examined largest turn first; the
+    first that is not free sets the figure.
     """
     spin = np.sqrt(np.einsum("ij,ij->i", state.omega, state.omega))
-    spinning = np.flatnonzero((time_step * spin > max_rotation) & ~state.shapes.is_sphere[state.kind])
-    if not len(spinning):
-        return 0.0
     radius = state.radius
+    turn = time_step * spin * np.sqrt(radius / 0.5)
+    turning = np.flatnonzero((turn > max_rotation) & ~state.shapes.is_sphere[state.kind])
+    if not len(turning):
+        return 0.0
     travel = _ALERT_MARGIN * time_step * (np.linalg.norm(state.velocity, axis=1) + radius * spin + time_step)
-    for p in spinning[np.argsort(-spin[spinning], kind="stable")]:
+    for p in turning[np.argsort(-turn[turning], kind="stable")]:
         gap = np.linalg.norm(state.box.minimum_image(state.position - state.position[p]), axis=1) - radius - radius[p]
         gap[p] = math.inf
         if (state.position[p, 2] - radius[p] <= ceiling + travel[p]
                 or np.any(gap <= ceiling + travel[p] + travel)):
-            return float(spin[p])
+            return float(turn[p])
     return 0.0
 
 
