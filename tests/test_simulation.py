@@ -187,24 +187,30 @@ class Killed(BaseException):
     """Stands for SIGKILL: nothing after it runs (not even ``except Exception`` handlers)."""
 
 
-def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
-    config = sphere_config(n=40, max_time=2.0)
-    whole = run_packing(config, tmp_path / "whole", progress=False)
-
-    calls = {"n": 0}
+def killed_run(config, out, monkeypatch, at_solve):
+    """Run ``config`` into ``out`` and kill it (:class:`Killed`) at its ``at_solve``-th solve,
+    leaving the checkpoint a killed process leaves."""
     advance = simulation.advance
+    calls = {"n": 0}
 
     def dying_advance(*args, **kwargs):
         calls["n"] += 1
-        if calls["n"] == 250:  # after the checkpoints of steps 100 and 200
+        if calls["n"] == at_solve:
             raise Killed
         return advance(*args, **kwargs)
 
     monkeypatch.setattr(simulation, "advance", dying_advance)
-    out = tmp_path / "killed"
     with pytest.raises(Killed):
         run_packing(config, out, progress=False)
     monkeypatch.setattr(simulation, "advance", advance)
+
+
+def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
+    config = sphere_config(n=40, max_time=2.0)
+    whole = run_packing(config, tmp_path / "whole", progress=False)
+
+    out = tmp_path / "killed"
+    killed_run(config, out, monkeypatch, at_solve=250)  # after the checkpoints of steps 100 and 200
     assert (out / "checkpoint.gsd").is_file() and not (out / "final.gsd").exists()
     assert read_packing(out / "checkpoint.gsd").metadata["counters"]["step"] == 200
 
@@ -226,19 +232,7 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
     from granpack.io.gsd import write_packing
 
     config = sphere_config(n=40, max_time=2.0)
-    advance = simulation.advance
-    calls = {"n": 0}
-
-    def dying_advance(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] == 250:
-            raise Killed
-        return advance(*args, **kwargs)
-
-    monkeypatch.setattr(simulation, "advance", dying_advance)
-    with pytest.raises(Killed):
-        run_packing(config, tmp_path, progress=False)
-    monkeypatch.setattr(simulation, "advance", advance)
+    killed_run(config, tmp_path, monkeypatch, at_solve=250)
     saved = read_packing(tmp_path / "checkpoint.gsd")
     counters = dict(saved.metadata["counters"])
     column = simulation.TIMELINE_COLUMNS.index("potential_energy_change")
@@ -256,19 +250,7 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
 
 def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch):
     config = sphere_config(n=20, max_time=1.0)
-    advance = simulation.advance
-    calls = {"n": 0}
-
-    def dying_advance(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] == 150:
-            raise Killed
-        return advance(*args, **kwargs)
-
-    monkeypatch.setattr(simulation, "advance", dying_advance)
-    with pytest.raises(Killed):
-        run_packing(config, tmp_path, progress=False)
-    monkeypatch.setattr(simulation, "advance", advance)
+    killed_run(config, tmp_path, monkeypatch, at_solve=150)
     other = _write(tmp_path.parent / f"{tmp_path.name}-other.toml", sphere_config(n=20, max_time=1.0, seed=9))
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     with pytest.raises(SystemExit) as info:
