@@ -308,9 +308,10 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
     return state, saved.contacts, counters
 
 
-#: length of a timeline row (columns, then running totals) in checkpoints written before the
-#: potential energy was recorded
-_ROW_WITHOUT_POTENTIAL = 27
+_POTENTIAL_COLUMN = TIMELINE_COLUMNS.index("potential_energy_change")
+#: length of a timeline row in checkpoints written before the potential energy was recorded:
+#: the other columns, then seven running totals
+_ROW_WITHOUT_POTENTIAL = len(TIMELINE_COLUMNS) - 1 + 7
 
 
 def _current_layout(row: list) -> list:
@@ -318,7 +319,7 @@ def _current_layout(row: list) -> list:
     existed gets NaN for it and for its running total, so that such a run resumes."""
     if len(row) != _ROW_WITHOUT_POTENTIAL:
         return row
-    return [*row[:3], math.nan, *row[3:], math.nan]
+    return [*row[:_POTENTIAL_COLUMN], math.nan, *row[_POTENTIAL_COLUMN:], math.nan]
 
 
 #: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
