@@ -4,6 +4,7 @@ tables, progress lines, one-line warnings)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -468,8 +469,10 @@ def test_ctrl_c_inside_a_numba_kernel_is_an_interruption(finished, tmp_path, cap
     assert err.startswith("interrupted before the first checkpoint") and "--resume" in err
 
 
-def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path, default_sigint):
-    """A real Ctrl-C (SIGINT to the process) while settling: exit 130, one line naming --resume."""
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_sigint_or_sigterm_to_a_running_command_stops_it_cleanly(tmp_path, default_sigint, sig):
+    """A real Ctrl-C (SIGINT to the process) while settling, or SIGTERM (a batch scheduler's
+    stop): exit 130, one line naming --resume, the checkpoint of the step written."""
     config = tmp_path / "long.toml"
     # never done: more passing checks in a row than the run can make (its 20 spheres come to rest)
     config.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 500.0\nwindow = 100000"))
@@ -482,7 +485,7 @@ def test_sigint_to_a_running_command_stops_it_cleanly(tmp_path, default_sigint):
             lines.append(line)
             if line.startswith("settling t = "):
                 break
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
         stdout, rest = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
@@ -606,9 +609,11 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     assert "steps/s" in lines[-1]
 
 
-def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path, default_sigint):
-    """Ctrl-C in a terminal signals the whole process group (the command and its Dask workers):
-    exit 130, one line saying how to continue, the runs' checkpoints kept, no traceback."""
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_sigint_or_sigterm_to_a_campaign_keeps_the_checkpoints(tmp_path, default_sigint, sig):
+    """Ctrl-C in a terminal signals the whole process group (the command and its Dask workers);
+    SIGTERM (``kill PID``) reaches the command alone: either way exit 130, one line saying how to
+    continue, the tables written, the runs' checkpoints kept, no traceback, and no worker left."""
     spec = tmp_path / "c.toml"
     spec.write_text(_TINY_CAMPAIGN.replace("max_time = 0.5", "max_time = 500.0\nwindow = 100000"))
     out = tmp_path / "out"
@@ -621,10 +626,21 @@ def test_sigint_to_a_campaign_keeps_the_checkpoints(tmp_path, default_sigint):
                 break
             time.sleep(0.5)
         assert checkpoint.is_file()
-        os.killpg(proc.pid, signal.SIGINT)
+        if sig == signal.SIGINT:
+            os.killpg(proc.pid, sig)
+        else:
+            proc.send_signal(sig)
         stdout, err = proc.communicate(timeout=120)
+        for _ in range(100):  # the workers end with the cluster the command closed
+            try:
+                os.killpg(proc.pid, 0)
+            except ProcessLookupError:
+                break
+            time.sleep(0.1)
+        else:
+            pytest.fail("a process of the campaign's group outlived it")
     finally:
-        if proc.poll() is None:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130 and "Traceback" not in err and err.count("\n") == 1, err
     assert err.startswith("interrupted; finished runs and the checkpoints of unfinished ones are kept")

@@ -4,7 +4,8 @@ Exit status: 0 on success; 2 for bad input or a usage error (one line ``error: .
 never a traceback: an unknown command or option, a missing or malformed value, a bad config, an
 output folder that would lose work); 1 for a campaign with failed runs, or a file the system
 refuses (permissions, disk full); 130 when interrupted by Ctrl-C (one line; a run keeps its
-checkpoint and the line gives the command that resumes it).
+checkpoint and the line gives the command that resumes it). SIGTERM (``kill``, a batch
+scheduler's stop before its SIGKILL) is taken as Ctrl-C, so a stopped job ends the same way.
 
 Streams: results go to stdout (with ``--json``, one JSON document instead of the tables);
 progress, notes and warnings go to stderr, one line each. Tables are cut to the terminal's width
@@ -13,8 +14,11 @@ on a terminal only: redirected, they are printed whole.
 
 from __future__ import annotations
 
+import contextlib
 import json
+import signal
 import sys
+import threading
 import warnings
 from pathlib import Path
 from typing import NoReturn, Optional
@@ -439,6 +443,33 @@ def _commands() -> str:
     return ", ".join(getattr(typer.main.get_command(app), "commands", {}))
 
 
+def _sigterm_as_ctrl_c(signum, frame) -> None:
+    """SIGTERM handler: do what Ctrl-C does now. The current SIGINT handler is called (while a run
+    settles, it asks the run to stop at the end of its step with its checkpoint written; elsewhere
+    Python's raises KeyboardInterrupt); where SIGINT is ignored (a job started in the background
+    by a shell), KeyboardInterrupt is raised, so SIGTERM still stops the command."""
+    handler = signal.getsignal(signal.SIGINT)
+    if callable(handler):
+        handler(signal.SIGINT, frame)
+    else:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _sigterm_taken_as_ctrl_c():
+    """While the command runs, SIGTERM goes to :func:`_sigterm_as_ctrl_c` (only over the default
+    action, which would end the process at once: a half-written step lost since the last
+    checkpoint, a campaign's tables not written)."""
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _main(args: list[str]) -> int:
     """Run the command of ``args``; return the exit status (messages already printed)."""
     if not args:
@@ -448,7 +479,8 @@ def _main(args: list[str]) -> int:
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
-        code = command.main(args=args, prog_name="granpack", standalone_mode=False)
+        with _sigterm_taken_as_ctrl_c():
+            code = command.main(args=args, prog_name="granpack", standalone_mode=False)
     except _Stop as exc:
         print(exc.message, file=sys.stderr)
         return exc.code
