@@ -283,25 +283,35 @@ def pour(n=150, lateral=5.0, stretch=1.3, shape="pinacoid", seed=7):
     return make_state(PIN, x, random_quaternions(n, rng), box=lateral)
 
 
-@pytest.mark.parametrize("theta", [0.5, 1.0])
-def test_pour_energy_never_increases_beyond_the_scheme_bound(theta):
-    state = pour()
-    params = StepParameters(time_step=H, theta=theta)
+def pour_energy_steps(state, params, n_steps=400):
+    """Step ``state`` ``n_steps`` times; per step yield ``(gain, correction, r_n, u_start, u_end)``:
+    the energy change without the correction's, the correction's energy, and the normal impulses
+    and the normal velocities at the start and end of the step of each contact point."""
     warm = None
-    e0 = total_energy(state)
-    excess, gains, corrections = [], [], 0.0
-    for _ in range(400):
+    for _ in range(n_steps):
         before = total_energy(state)
         pr = predict(state, params)
         contacts = detect(pr.state, params.alert, previous=warm)
         warm, info = advance(state, pr, contacts, params, warm)
         gain = total_energy(state) - before - info.correction_energy
-        corrections += info.correction_energy
-        bound = 0.0
-        if contacts.n_points and theta == 0.5:
+        r = np.zeros((contacts.n_points, 3))
+        u_start = u_end = np.zeros(0)
+        if contacts.n_points:
             problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H)
-            rn = np.einsum("ij,ij->i", contacts.impulse, problem.normal)
-            bound = 0.5 * float(np.sum(rn * np.maximum(0.0, problem.local_velocity(pr.start_velocity)[:, 0])))
+            r[:, 0] = np.einsum("ij,ij->i", contacts.impulse, problem.normal)
+            u_start = problem.local_velocity(pr.start_velocity)[:, 0]
+            u_end = problem.local_velocity(problem.velocity(r))[:, 0]
+        yield gain, info.correction_energy, r[:, 0], u_start, u_end
+
+
+@pytest.mark.parametrize("theta", [0.5, 1.0])
+def test_pour_energy_never_increases_beyond_the_scheme_bound(theta):
+    state = pour()
+    e0 = total_energy(state)
+    excess, gains, corrections = [], [], 0.0
+    for gain, correction, r_n, u_start, _ in pour_energy_steps(state, StepParameters(time_step=H, theta=theta)):
+        corrections += correction
+        bound = 0.5 * float(np.sum(r_n * np.maximum(0.0, u_start))) if theta == 0.5 else 0.0
         gains.append(gain)
         excess.append(gain - bound)
     assert max(excess) < 1e-12 * e0
@@ -315,27 +325,12 @@ def test_sphere_pour_energy_change_is_the_impulses_work_at_the_mean_velocity():
     exactly for spheres (their rotation stores no energy the impulses do not account for); the
     contacts dissipate, and put energy back only at loaded points that were opening."""
     state = pour(shape="sphere")
-    params = StepParameters(time_step=H, theta=0.5)
-    warm = None
     e0 = total_energy(state)
     mismatch, given_back, taken = [], 0.0, 0.0
-    for _ in range(400):
-        before = total_energy(state)
-        pr = predict(state, params)
-        contacts = detect(pr.state, params.alert, previous=warm)
-        warm, info = advance(state, pr, contacts, params, warm)
-        gain = total_energy(state) - before - info.correction_energy
-        work = 0.0
-        if contacts.n_points:
-            problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H)
-            r = np.zeros((contacts.n_points, 3))
-            r[:, 0] = np.einsum("ij,ij->i", contacts.impulse, problem.normal)
-            u_start = problem.local_velocity(pr.start_velocity)[:, 0]
-            u_end = problem.local_velocity(problem.velocity(r))[:, 0]
-            work = 0.5 * float(np.sum(r[:, 0] * (u_start + u_end)))
-            given_back += 0.5 * float(np.sum(r[:, 0] * np.maximum(u_start, 0.0)))
-            taken -= 0.5 * float(np.sum(r[:, 0] * np.minimum(u_start, 0.0)))
-        mismatch.append(abs(gain - work))
+    for gain, _, r_n, u_start, u_end in pour_energy_steps(state, StepParameters(time_step=H, theta=0.5)):
+        mismatch.append(abs(gain - 0.5 * float(np.sum(r_n * (u_start + u_end)))))
+        given_back += 0.5 * float(np.sum(r_n * np.maximum(u_start, 0.0)))
+        taken -= 0.5 * float(np.sum(r_n * np.minimum(u_start, 0.0)))
     assert max(mismatch) < 1e-12 * e0
     assert taken > 1.0 and 0.0 < given_back < 0.01 * taken
 
