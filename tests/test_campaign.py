@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from granpack.campaign import campaign_from_dict, load_campaign, run_campaign
-from granpack.campaign.runner import estimated_cost, longest_first, selected_runs
+from granpack.campaign.runner import estimated_cost, longest_first, selected_runs, status_line
 from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row, summary_table, write_task
 from granpack.cli import main
 from granpack.config import load_config_dict
@@ -303,6 +303,10 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
     assert runs["status"].tolist() == ["done"] * 4 + ["failed"]
     assert "volume_fraction" in runs.loc[4, "error"]
     assert "volume_fraction" in (out / "bad" / "seed-11" / "error.txt").read_text()
+    for run in good:  # each run's progress went to its progress.log, ending with how it ended
+        log = (out / run.folder / "progress.log").read_text().splitlines()
+        assert log[0].startswith(f"pouring {run.config['n_particles']} grains") and "settling t = " in log[2]
+        assert log[-1].startswith(("equilibrium at t = ", "not at rest at t = "))
     for column in ("solid_fraction.bulk", "coordination.N"):
         assert runs.loc[:3, column].notna().all()
     assert runs.loc[:3, "order.Q00"].isna().all()  # spheres have no orientational order
@@ -334,6 +338,18 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
     # nothing left to do: no cluster is started, the tables are rewritten
     report = run_campaign(spec, out, progress=False)
     assert (report.n_skipped, report.n_done, report.n_failed) == (4, 4, 0)
+
+
+def test_status_line_is_the_last_line_of_the_runs_progress_log(tmp_path):
+    run = campaign_from_dict(_tiny_dict()).runs[0]
+    assert status_line(tmp_path, run) is None  # not started: no progress.log yet
+    folder = tmp_path / run.folder
+    folder.mkdir(parents=True)
+    (folder / "progress.log").write_text("")
+    assert status_line(tmp_path, run) is None
+    lines = [f"settling t = {i * 0.25:.2f}/15 sqrt(d/g), step {i * 50}, " + "x" * 200 for i in range(1, 40)]
+    (folder / "progress.log").write_text("\n".join(lines) + "\n\n")
+    assert status_line(tmp_path, run) == f"running mono/seed-11: {lines[-1]}"
 
 
 def test_a_local_worker_ignores_sigint_and_logs_only_critical_distributed_messages(monkeypatch):

@@ -581,11 +581,11 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
 
     from rich.console import Console
 
-    from granpack.simulation import _SettlingProgress
+    from granpack.simulation import _Lines, _SettlingProgress
 
     report = SimpleNamespace(force_ok=True, torque_ok=False, energy_ok=False, wall_ok=True, max_net_force=1.2e-2,
                              kinetic_energy=3e-5, max_net_torque=1e-3, wall_force_over_weight=0.9998)
-    progress = _SettlingProgress("bar", 200.0, 5e-3)
+    progress = _SettlingProgress("bar", 200.0, 5e-3, _Lines())
     with progress:
         progress._bar.stop()
         progress.update(123.456, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
@@ -607,6 +607,30 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("settling t = ")]
     assert len(lines) == 4 and lines[-1].startswith("settling t = 1.00/1 sqrt(d/g), step 200, ")
     assert "steps/s" in lines[-1]
+
+
+def test_progress_log_takes_the_lines_and_notes_and_overwrite_removes_it(tmp_path, capsys, monkeypatch):
+    """``progress="log"`` (a campaign's runs): nothing on stderr, the notes and progress lines
+    appended to progress.log, the last one saying how the run ended; --overwrite removes it."""
+    import granpack.simulation as simulation
+
+    from granpack.config import load_config
+
+    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_RUN)
+    out = tmp_path / "r"
+    simulation.run_packing(load_config(path), out, progress="log")
+    assert capsys.readouterr().err == ""
+    lines = (out / "progress.log").read_text().splitlines()
+    assert lines[0].startswith("pouring 20 grains") and lines[1].startswith("poured in")
+    assert [line.split(", step")[0] for line in lines[2:-1]] == [f"settling t = {t:.2f}/1 sqrt(d/g)"
+                                                                  for t in (0.25, 0.5, 0.75, 1.0)]
+    assert lines[-1].startswith("not at rest at t = 1 sqrt(d/g) after ") and "largest net force" in lines[-1]
+    simulation.run_packing(load_config(path), out, resume=True, progress="log")
+    assert (out / "progress.log").read_text().splitlines()[-1].endswith("nothing to resume, its summary stands")
+    simulation.run_packing(load_config(path), out, overwrite=True, progress=False)
+    assert not (out / "progress.log").exists()
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])

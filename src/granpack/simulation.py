@@ -98,7 +98,7 @@ from granpack.state import ParticleState
 
 __all__ = ["run_packing", "initial_state", "step_parameters", "criteria_of", "step_alert",
            "STATUS_AT_REST", "STATUS_NOT_AT_REST", "CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE",
-           "SUMMARY_FILE", "TRAJECTORY_FILE"]
+           "SUMMARY_FILE", "TRAJECTORY_FILE", "PROGRESS_FILE"]
 
 STATUS_AT_REST = "equilibrium"
 STATUS_NOT_AT_REST = "not at rest"
@@ -108,6 +108,8 @@ FINAL_FILE = "final.gsd"
 SUMMARY_FILE = "summary.json"
 TRAJECTORY_FILE = "trajectory.gsd"
 TIMELINE_FILE = "timeline.csv"
+#: the progress lines and notes of a run with ``progress="log"`` (a campaign's runs), appended
+PROGRESS_FILE = "progress.log"
 #: columns of ``timeline.csv``, one row per equilibrium check; counts and sums over the interval
 #: since the previous check, figures of the equilibrium test at the check
 TIMELINE_COLUMNS = (
@@ -324,34 +326,52 @@ def _current_layout(row: list) -> list:
 
 #: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
 #: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
-RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, "analysis.json", "packing.png")
+RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, "analysis.json",
+             "packing.png")
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
 RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
 
 
 def _progress_mode(progress: bool | str) -> str:
-    """``"bar"``, ``"lines"`` or ``"off"`` for the ``progress`` argument of :func:`run_packing`."""
+    """``"bar"``, ``"lines"``, ``"log"`` or ``"off"`` for the ``progress`` argument of :func:`run_packing`."""
     if progress is True:
         isatty = getattr(sys.stderr, "isatty", None)
         return "bar" if isatty is not None and isatty() else "lines"
     if progress is False or progress is None:
         return "off"
-    if progress in ("bar", "lines", "off"):
+    if progress in ("bar", "lines", "log", "off"):
         return str(progress)
-    raise ValueError(f"progress must be True, False, 'bar', 'lines' or 'off' (got {progress!r})")
+    raise ValueError(f"progress must be True, False, 'bar', 'lines', 'log' or 'off' (got {progress!r})")
+
+
+class _Lines:
+    """Where a run's one-line messages go: stderr, or appended to ``log`` (a file opened and
+    closed per line, so that a reader sees each line at once and an interrupted run leaves a
+    whole file)."""
+
+    def __init__(self, log: Path | None = None):
+        self.log = log
+
+    def __call__(self, line: str) -> None:
+        if self.log is None:
+            print(line, file=sys.stderr, flush=True)
+        else:
+            with open(self.log, "a", encoding="utf-8") as f:
+                f.write(line + "\n")
 
 
 class _Notes:
-    """One-line notes on stderr (resuming, overwriting; the pour in ``"lines"`` mode); none when silent."""
+    """One-line notes (resuming, overwriting; the pour in ``"lines"`` and ``"log"`` modes); none when silent."""
 
-    def __init__(self, mode: str):
+    def __init__(self, mode: str, write: _Lines):
         self.mode = mode
+        self.write = write
 
     def __call__(self, message: str, lines_only: bool = False) -> None:
-        if self.mode == "off" or (lines_only and self.mode != "lines"):
+        if self.mode == "off" or (lines_only and self.mode not in ("lines", "log")):
             return
-        print(message, file=sys.stderr, flush=True)
+        self.write(message)
 
 
 def _is_resolved_config(path: Path, config_text: str) -> bool:
@@ -471,9 +491,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         overwrite: replace the run that ``out_dir`` holds: its :data:`RUN_FILES` and the
             figures and exports of :data:`RUN_FOLDERS` are removed first (other files stay).
         progress: ``"bar"``: progress bars on stderr; ``"lines"``: a progress line on stderr
-            every 30 s of wall time (for logs); ``True``: the bars if stderr is a terminal, else
-            the lines; ``False``: nothing. Notes (resuming, overwriting) go to stderr unless
-            ``False``.
+            every 30 s of wall time (for logs); ``"log"``: the same lines and the notes appended
+            to ``out_dir/progress.log`` instead (a campaign's runs, whose stderr nobody reads);
+            ``True``: the bars if stderr is a terminal, else the lines; ``False``: nothing. Notes
+            (resuming, overwriting) go to stderr unless ``False`` or ``"log"``.
 
     Returns:
         The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
@@ -494,7 +515,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     """
     out_dir = Path(out_dir)
     mode = _progress_mode(progress)
-    note = _Notes(mode)
+    write = _Lines(out_dir / PROGRESS_FILE if mode == "log" else None)
+    note = _Notes(mode, write)
     config_text = config.to_toml()
     if _claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note):
         return read_json(out_dir / SUMMARY_FILE)
@@ -547,7 +569,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
     step_h = h
 
-    bar = _SettlingProgress(mode, eq.max_time, h)
+    bar = _SettlingProgress(mode, eq.max_time, h, write)
     interrupt = _Interrupt()
     with bar, interrupt:
         while counters.step < n_steps_max:
@@ -639,6 +661,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write_json(out_dir / SUMMARY_FILE, summary)
     write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
+    note(f"{status} at t = {state.time:.6g} sqrt(d/g) after {counters.wall_seconds:.0f} s: "
+         f"largest net force {report.max_net_force:.3g} d^2 P", lines_only=True)
     return summary
 
 
@@ -759,7 +783,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
     }
 
 
-#: wall-clock seconds between two progress lines (``progress="lines"``)
+#: wall-clock seconds between two progress lines (``progress="lines"`` or ``"log"``)
 _PROGRESS_LINE_SECONDS = 30.0
 
 
@@ -776,12 +800,12 @@ class _SettlingProgress:
     terminal, the figures after the bar are cut to the width left. ``"lines"``: one line every
     :data:`_PROGRESS_LINE_SECONDS` of wall time (the first at the first check): simulated time,
     step, steps per second, total kinetic energy, largest net force, contacts, largest overlap,
-    criteria met.
-    ``"off"``: nothing.
+    criteria met, written by ``write``; ``"log"``: the same. ``"off"``: nothing.
     """
 
-    def __init__(self, mode: str, max_time: float, time_step: float):
+    def __init__(self, mode: str, max_time: float, time_step: float, write: _Lines):
         self.mode = mode
+        self.write = write
         self.max_time = max_time
         self.time_step = time_step
         self._bar = None
@@ -815,7 +839,7 @@ class _SettlingProgress:
                     f"Ek {ek:.2e}  contacts {n_contacts}  |T| {report.max_net_torque:.1e}  "
                     f"W {report.wall_force_over_weight:.4f}  overlap {overlap:.1e}")
             self._bar.update(self._task, completed=min(t, self.max_time), info=info)
-        elif self.mode == "lines":
+        elif self.mode in ("lines", "log"):
             now = time.perf_counter()
             if self._last is not None and now - self._last[0] < _PROGRESS_LINE_SECONDS:
                 return
@@ -823,11 +847,10 @@ class _SettlingProgress:
             if self._last is not None and now > self._last[0]:
                 rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
             self._last = (now, t)
-            print(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
-                  f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
-                  f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
-                  f"criteria met: {_criteria_met(report)} ({passes}/{window} checks)",
-                  file=sys.stderr, flush=True)
+            self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
+                       f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
+                       f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
+                       f"criteria met: {_criteria_met(report)} ({passes}/{window} checks)")
 
     def __exit__(self, *exc):
         if self._bar is not None:

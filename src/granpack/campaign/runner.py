@@ -12,6 +12,10 @@ Each task runs :func:`granpack.simulation.run_packing` then
   machines without a Dask cluster in common can share a campaign, each taking its own mixtures
   into a copy of the output folder; the tables list every run (``missing`` for those not run).
 
+Each run appends its progress lines and notes to ``progress.log`` in its folder (nobody reads
+a worker's stderr); every ten minutes the campaign prints the last of those lines for each run
+in progress, so that a campaign of hour-long runs shows where each stands in its log.
+
 A task that fails is retried once; if it fails again, its traceback is saved as ``error.txt`` in
 its folder and its row in ``runs.csv`` says ``failed``; the other tasks go on.
 
@@ -59,13 +63,15 @@ from granpack.io.atomic import output_folder
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["CampaignReport", "run_campaign", "run_task", "selected_runs", "MAX_ATTEMPTS"]
+__all__ = ["CampaignReport", "run_campaign", "run_task", "selected_runs", "status_line", "MAX_ATTEMPTS"]
 
 #: attempts per task (the first run and one retry)
 MAX_ATTEMPTS = 2
 #: environment of the local workers: one thread each for Numba, OpenMP and BLAS
 _WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 _PROGRESS_SECONDS = 2.0  # longest wait between two refreshes of the progress line
+#: wall-clock seconds between two rounds of status lines of the runs in progress
+_STATUS_SECONDS = 600.0
 _FINAL_FILE = "final.gsd"
 _CHECKPOINT_GLOB = "checkpoint*"
 
@@ -130,7 +136,7 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
             write_task(run_dir, run)
         config = load_config_dict(run.config, source=run.folder.as_posix())
         if action != "analysed":  # the campaign owns its run folders: a run started afresh replaces what is there
-            run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress=False)
+            run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress="log")
         with warnings.catch_warnings():  # kept in analysis.json ("warnings"), not printed by the workers
             warnings.simplefilter("ignore", AnalysisWarning)
             result = analyze_run(run_dir)
@@ -234,8 +240,32 @@ def longest_first(runs: list[RunSpec]) -> list[RunSpec]:
     return sorted(runs, key=estimated_cost, reverse=True)
 
 
+def _last_line(path: Path) -> str | None:
+    """The last non-blank line of the text file ``path`` (read from its end); None if it has none
+    or does not exist."""
+    try:
+        with open(path, "rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            f.seek(max(0, size - 4096))
+            tail = f.read().decode("utf-8", errors="replace")
+    except FileNotFoundError:
+        return None
+    lines = [line for line in tail.splitlines() if line.strip()]
+    return lines[-1] if lines else None
+
+
+def status_line(out_dir: Path, run: RunSpec) -> str | None:
+    """``running <mixture>/seed-<s>: <the last line of its progress.log>``, or None before the
+    run has written one (a task waiting for a worker, or a run still pouring its first grains)."""
+    from granpack.simulation import PROGRESS_FILE
+
+    line = _last_line(Path(out_dir) / run.folder / PROGRESS_FILE)
+    return None if line is None else f"running {run.folder.as_posix()}: {line}"
+
+
 def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
-    """Submit ``todo``, retry failures once, show progress; returns (done, failed) counts."""
+    """Submit ``todo``, retry failures once, show progress (every :data:`_STATUS_SECONDS`, the
+    :func:`status_line` of each run in progress); returns (done, failed) counts."""
     from distributed import wait
 
     attempts: dict[Path, int] = {}
@@ -257,6 +287,7 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
         TextColumn("done {task.fields[done]}  running {task.fields[running]}  failed {task.fields[failed]}"),
         TimeElapsedColumn(),
     )
+    last_status = time.monotonic()
     with Progress(*columns, disable=not progress, transient=False) as bar:
         task = bar.add_task("runs", total=len(todo), done=0, running=0, failed=0)
         while active:
@@ -282,8 +313,14 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                     failed += 1
                     errors[run.folder] = outcome["error"]
                     bar.console.print(f"[red]failed[/red]  {label}: {outcome['error']}")
-            running = sum(len(keys) for keys in client.processing().values())
-            bar.update(task, completed=done + failed, done=done, running=running, failed=failed)
+            processing = {key for keys in client.processing().values() for key in keys}
+            bar.update(task, completed=done + failed, done=done, running=len(processing), failed=failed)
+            if progress and time.monotonic() - last_status >= _STATUS_SECONDS:
+                last_status = time.monotonic()
+                for future, run in active.items():
+                    line = status_line(out_dir, run) if future.key in processing else None
+                    if line is not None:
+                        bar.console.print(line, markup=False, highlight=False)
             if active:
                 try:  # block until a run ends (a bounded wait, to refresh the running count)
                     wait(list(active), timeout=_PROGRESS_SECONDS, return_when="FIRST_COMPLETED")
