@@ -350,6 +350,9 @@ def test_status_line_is_the_last_line_of_the_runs_progress_log(tmp_path):
     lines = [f"settling t = {i * 0.25:.2f}/15 sqrt(d/g), step {i * 50}, " + "x" * 200 for i in range(1, 40)]
     (folder / "progress.log").write_text("\n".join(lines) + "\n\n")
     assert status_line(tmp_path, run) == f"running mono/seed-11: {lines[-1]}"
+    written = (folder / "progress.log").stat().st_mtime
+    assert status_line(tmp_path, run, since=written) == f"running mono/seed-11: {lines[-1]}"
+    assert status_line(tmp_path, run, since=written + 1.0) is None  # an earlier call's log: a queued task
 
 
 def test_a_local_worker_ignores_sigint_and_logs_only_critical_distributed_messages(monkeypatch):

@@ -254,12 +254,19 @@ def _last_line(path: Path) -> str | None:
     return lines[-1] if lines else None
 
 
-def status_line(out_dir: Path, run: RunSpec) -> str | None:
+def status_line(out_dir: Path, run: RunSpec, since: float | None = None) -> str | None:
     """``running <mixture>/seed-<s>: <the last line of its progress.log>``, or None before the
-    run has written one (a task waiting for a worker, or a run still pouring its first grains)."""
+    run has written one (a run still pouring its first grains) or, with ``since`` (seconds since
+    the epoch), one since then (a task waiting for a worker, whose log is an earlier call's)."""
     from granpack.simulation import PROGRESS_FILE
 
-    line = _last_line(Path(out_dir) / run.folder / PROGRESS_FILE)
+    path = Path(out_dir) / run.folder / PROGRESS_FILE
+    try:
+        if since is not None and path.stat().st_mtime < since:
+            return None
+    except FileNotFoundError:
+        return None
+    line = _last_line(path)
     return None if line is None else f"running {run.folder.as_posix()}: {line}"
 
 
@@ -287,7 +294,7 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
         TextColumn("done {task.fields[done]}  running {task.fields[running]}  failed {task.fields[failed]}"),
         TimeElapsedColumn(),
     )
-    last_status = time.monotonic()
+    started, last_status = time.time(), time.monotonic()
     with Progress(*columns, disable=not progress, transient=False) as bar:
         task = bar.add_task("runs", total=len(todo), done=0, running=0, failed=0)
         while active:
@@ -313,12 +320,14 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                     failed += 1
                     errors[run.folder] = outcome["error"]
                     bar.console.print(f"[red]failed[/red]  {label}: {outcome['error']}")
+            # tasks given to a worker, some of them queued there behind the one each thread runs
             processing = {key for keys in client.processing().values() for key in keys}
-            bar.update(task, completed=done + failed, done=done, running=len(processing), failed=failed)
+            running = min(len(processing), sum(client.nthreads().values()))
+            bar.update(task, completed=done + failed, done=done, running=running, failed=failed)
             if progress and time.monotonic() - last_status >= _STATUS_SECONDS:
                 last_status = time.monotonic()
                 for future, run in active.items():
-                    line = status_line(out_dir, run) if future.key in processing else None
+                    line = status_line(out_dir, run, since=started) if future.key in processing else None
                     if line is not None:
                         bar.console.print(line, markup=False, highlight=False)
             if active:
