@@ -283,7 +283,7 @@ def _mtimes(out, runs):
     return {r.folder: (out / r.folder / "analysis.json").stat().st_mtime_ns for r in runs}
 
 
-def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
+def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
     pytest.importorskip("granpack.simulation", reason="granpack.simulation (run_packing) is not written yet")
     pytest.importorskip("granpack.analysis.report", reason="granpack.analysis.report (analyze_run) is not written yet")
     spec_path = tmp_path / "tiny.toml"
@@ -294,8 +294,15 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys):
     bad = dataclasses.replace(good[0], mixture="bad", config=bad_config)
     out = tmp_path / "out"
 
+    import granpack.campaign.runner as runner
+
+    monkeypatch.setattr(runner, "_STATUS_SECONDS", 0.0)  # a status round at every refresh (2 s)
     report = run_campaign(dataclasses.replace(spec, runs=good + (bad,)), out, workers=2)
     printed = capsys.readouterr().out
+    status = [line.removeprefix("running ").split(": ", 1) for line in printed.splitlines() if line.startswith("running ")]
+    assert status  # each a whole line of the run's progress.log, however long (not wrapped at 80 columns)
+    assert all(text in (out / folder / "progress.log").read_text().splitlines() for folder, text in status)
+    assert any(len(text) > 80 for _, text in status)
     assert (report.n_runs, report.n_done, report.n_failed, report.n_skipped) == (5, 4, 1, 0)
     assert "retry   bad/seed-11" in printed and "failed  bad/seed-11" in printed
     runs = pd.read_csv(out / "runs.csv")

@@ -329,7 +329,7 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                 for future, run in active.items():
                     line = status_line(out_dir, run, since=started) if future.key in processing else None
                     if line is not None:
-                        bar.console.print(line, markup=False, highlight=False)
+                        bar.console.print(line, markup=False, highlight=False, soft_wrap=True)  # one line in a log
             if active:
                 try:  # block until a run ends (a bounded wait, to refresh the running count)
                     wait(list(active), timeout=_PROGRESS_SECONDS, return_when="FIRST_COMPLETED")
