@@ -1,6 +1,6 @@
 """The study campaign's finished runs, kept in the repository so the campaign can span machines.
 
-`examples/study.toml` is some 70 to 80 CPU hours of pinacoid runs: more than one machine or one
+`examples/study.toml` is some 80 to 90 CPU hours of pinacoid runs: more than one machine or one
 session gives. A finished run is defined by small files (``granpack.campaign.store``: a valid
 ``analysis.json`` and the ``task.json`` of the same run config); with ``summary.json`` and
 ``timeline.csv`` beside them they hold every figure the campaign's tables and ``granpack
