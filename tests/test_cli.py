@@ -526,6 +526,75 @@ def test_check_json_and_the_short_column_warning(tmp_path, capsys):
     assert code == 0 and err == ""  # the demo's pile has a bulk region
 
 
+CAMPAIGN = """\
+replicas = 2
+
+[base]
+n_particles = 3000
+lateral_size = 8.0
+seed = 5
+
+[[mixtures]]
+name = "mono"
+family = "spheres"
+share = 0.0
+[[mixtures.populations]]
+name = "large"
+shape = "sphere"
+size = 1.0
+volume_fraction = 1.0
+
+[[mixtures]]
+name = "thin"
+family = "spheres"
+share = 0.3
+lateral_size = 20.0
+[[mixtures.populations]]
+name = "large"
+shape = "sphere"
+size = 1.0
+volume_fraction = 0.7
+[[mixtures.populations]]
+name = "small"
+shape = "sphere"
+size = {small}
+volume_fraction = 0.3
+"""
+
+
+def test_check_reads_a_campaign_spec_one_row_per_mixture(tmp_path, capsys):
+    """A campaign spec is checked run config by run config: one row per mixture with its own
+    overrides (cell, seeds base.seed + replica, populations), the column warning of the mixture
+    whose 20 d cell leaves its pile too low, and a bad value named by mixture and field."""
+    path = tmp_path / "campaign.toml"
+    path.write_text(CAMPAIGN.format(small=0.3333333333))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0
+    assert "2 mixtures x 2 replicas = 4 runs" in out
+    cells = {row[0]: row for row in ([c.strip() for c in line.split("│")[1:-1]] for line in out.splitlines()
+                                     if line.startswith("│"))}
+    assert cells["mono"] == ["mono", "spheres", "0", "3000", "8", "5, 6", "large (3000, 1.0000)"]
+    assert cells["thin"] == ["thin", "spheres", "0.3", "3000", "20", "5, 6", "large (239, 0.7003); small (2761, 0.2997)"]
+    assert "time step" in out and "net force below" in out
+    assert err.count("\n") == 1 and err.startswith("warning: thin: the settled pile will stand about")
+    code, out, err = run_main(["check", str(path), "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["n_runs"] == 4 and [m["seeds"] for m in result["mixtures"]] == [[5, 6], [5, 6]]
+    assert result["mixtures"][1]["lateral_size"] == 20.0 and result["warnings"][0].startswith("thin: ")
+    path.write_text(CAMPAIGN.format(small=-1))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith(f"error: {path}: mixtures[1] (thin): populations[1].size: must be > 0 (got -1)"), err
+
+
+def test_check_accepts_the_example_campaigns(capsys):
+    for name, n_runs in (("study.toml", 90), ("study-small.toml", None)):
+        code, out, err = run_main(["check", str(EXAMPLES / name), "--json"], capsys)
+        result = json.loads(out)
+        assert code == 0 and result["valid"] and len(result["mixtures"]) >= 2
+        assert n_runs is None or result["n_runs"] == n_runs
+
+
 def test_check_expects_a_mix_of_sizes_to_settle_denser(tmp_path, capsys):
     """1040 grains of study-small's pinacoids-small-30 (sizes 1 and 1/3, 30 % small, 2.25 d cell)
     fill 5.5 d at a solid fraction of 0.6, but such a pile settled at 0.72-0.74 with its surface

@@ -129,18 +129,94 @@ def _column_warning(cfg, mixture) -> str | None:
             f"the bulk figures of `granpack analyze` will be nan; use {more} or a narrower cell")
 
 
+def _settings_lines(cfg) -> list[str]:
+    """The solver and equilibrium settings of a resolved run config, as `granpack check` prints them."""
+    solver, eq = cfg.solver, cfg.equilibrium
+    return [
+        f"solver: time step {solver.time_step:g} sqrt(d/g), friction {solver.friction:g}, restitution "
+        f"{solver.restitution:g}, tolerance {solver.tolerance:g} ({solver.settling_tolerance:g} far from rest), max "
+        f"iterations {solver.max_iterations}, theta {solver.theta:g}, check every {solver.check_every} sweeps, "
+        f"overlaps pushed back above {solver.recovery_slop:g} d, projected above {solver.overlap_slop:g} d "
+        f"({solver.pour_overlap_slop:g} while grains move fast)",
+        f"equilibrium: net force below {eq.force_tolerance:g} d^2 P, torque below {eq.torque_tolerance:g} d^3 P, "
+        f"kinetic criterion below {eq.kinetic_tolerance:g} d^3 P, wall force within {eq.wall_tolerance:g} of the "
+        f"weight, at {eq.window} checks in a row (one every {eq.check_interval:g} sqrt(d/g)); max time "
+        f"{eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, {cfg.deposit.lateral} lateral boundaries",
+    ]
+
+
+def _is_campaign_file(path: Path) -> bool:
+    """True when ``path`` reads as TOML with a top-level ``mixtures`` key (a campaign spec).
+
+    Anything unreadable is left to the run-config loader, whose errors name the file.
+    """
+    import tomllib
+
+    try:
+        return "mixtures" in tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+
+
+def _check_campaign(path: Path, json_output: bool) -> None:
+    """`granpack check` on a campaign spec: every run config validated, one row per mixture."""
+    from rich.table import Table
+    from rich.text import Text
+
+    from granpack.campaign.spec import load_campaign
+    from granpack.config import load_config_dict
+    from granpack.mixture import Mixture
+
+    spec = load_campaign(path)
+    rows, warnings, first = [], [], None
+    for mix in spec.mixtures:
+        run = next(r for r in spec.runs if r.mixture == mix.name)
+        cfg = load_config_dict(run.config, source=f"{path}: {mix.name}")
+        first = first or cfg
+        mixture = Mixture.from_config(cfg)
+        warning = _column_warning(cfg, mixture)
+        if warning:
+            warnings.append(f"{mix.name}: {warning}")
+        seeds = [r.seed for r in spec.runs if r.mixture == mix.name]
+        rows.append({"mixture": mix.name, "family": mix.family, "share": mix.share, "n_particles": cfg.n_particles,
+                     "lateral_size": cfg.lateral_size, "seeds": seeds, "populations": mixture.table()})
+    if json_output:
+        _print_json({"campaign": str(path), "valid": True, "replicas": spec.replicas, "n_runs": len(spec.runs),
+                     "mixtures": rows, "warnings": warnings})
+        return
+    table = Table(title=Text(f"{path}: campaign"))
+    for heading in ("mixture", "family", "share", "N", "cell (d)", "seeds", "populations (count, achieved share)"):
+        table.add_column(heading, justify="right" if heading in ("share", "N", "cell (d)") else "left")
+    for row in rows:
+        pops = "; ".join(f"{p['population']} ({p['count']}, {p['achieved_share']:.4f})" for p in row["populations"])
+        table.add_row(row["mixture"], row["family"] or "", "" if row["share"] is None else f"{row['share']:g}",
+                      str(row["n_particles"]), f"{row['lateral_size']:g}", ", ".join(map(str, row["seeds"])), pops)
+    console = _console()
+    console.print(table)
+    console.print(f"{len(spec.mixtures)} mixtures x {spec.replicas} replicas = {len(spec.runs)} runs", markup=False)
+    console.print("settings of the first mixture (others differ only where their [[mixtures]] entry says):",
+                  markup=False)
+    for line in _settings_lines(first):
+        console.print(line, markup=False)
+    for warning in warnings:
+        _note(f"warning: {warning}")
+
+
 @app.command()
 def check(
-    config: Path = typer.Argument(..., help="Run config (TOML)."),
+    config: Path = typer.Argument(..., help="Run config or campaign spec (TOML)."),
     json_output: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
-    """Validate CONFIG and print the mixture table and the settings."""
+    """Validate CONFIG and print the mixture table and the settings (one row per mixture for a campaign)."""
     from rich.table import Table
     from rich.text import Text
 
     from granpack.config import load_config
     from granpack.mixture import Mixture
 
+    if _is_campaign_file(config):
+        _check_campaign(config, json_output)
+        return
     cfg = load_config(config)
     mixture = Mixture.from_config(cfg)
     warning = _column_warning(cfg, mixture)
@@ -160,22 +236,13 @@ def check(
         aspect = "" if row["aspect"] is None else "{:g}, {:g}".format(*row["aspect"])
         table.add_row(row["population"], row["shape"], f"{row['size']:.6g}", aspect, str(row["count"]),
                       f"{row['requested_share']:.6f}", f"{row['achieved_share']:.6f}", f"{row['particle_volume']:.6g}")
-    solver, eq = cfg.solver, cfg.equilibrium
     console = _console()
     console.print(table)
     console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
                   f"alert distance = {cfg.resolved_alert_distance:g} d"
-                  f"{'' if solver.alert_distance is not None else ' (automatic)'}", markup=False)
-    console.print(f"solver: time step {solver.time_step:g} sqrt(d/g), friction {solver.friction:g}, restitution "
-                  f"{solver.restitution:g}, tolerance {solver.tolerance:g} ({solver.settling_tolerance:g} far from rest), max "
-                  f"iterations {solver.max_iterations}, theta {solver.theta:g}, check every {solver.check_every} sweeps, "
-                  f"overlaps pushed back above {solver.recovery_slop:g} d, projected above {solver.overlap_slop:g} d "
-                  f"({solver.pour_overlap_slop:g} while grains move fast)", markup=False)
-    console.print(f"equilibrium: net force below {eq.force_tolerance:g} d^2 P, torque below {eq.torque_tolerance:g} d^3 P, "
-                  f"kinetic criterion below {eq.kinetic_tolerance:g} d^3 P, wall force within {eq.wall_tolerance:g} of the "
-                  f"weight, at {eq.window} checks in a row (one every {eq.check_interval:g} sqrt(d/g)); max time "
-                  f"{eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, "
-                  f"{cfg.deposit.lateral} lateral boundaries", markup=False)
+                  f"{'' if cfg.solver.alert_distance is not None else ' (automatic)'}", markup=False)
+    for line in _settings_lines(cfg):
+        console.print(line, markup=False)
     if warning:
         _note(f"warning: {warning}")
 
