@@ -6,6 +6,7 @@ import dataclasses
 import json
 import math
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -173,6 +174,41 @@ def test_spec_errors_are_one_line(change, message):
     with pytest.raises(InputError, match=message) as info:
         campaign_from_dict(data, source="c.toml")
     assert str(info.value).startswith("c.toml: ") and "\n" not in str(info.value)
+
+
+def _check(argv, capsys) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as info:
+        main(["check", *argv])
+    out, err = capsys.readouterr()
+    return info.value.code, out, err
+
+
+def test_check_reads_a_campaign_one_row_per_mixture(tmp_path, capsys):
+    """`granpack check` on a campaign checks each mixture's own run config: one row per mixture
+    with its overrides (cell, seeds base.seed + replica, populations), the column warning of the
+    mixture whose 20 d cell leaves its 150 grains a pile too low, a bad value named by mixture and
+    field; the example campaigns pass."""
+    path = tmp_path / "c.toml"
+    path.write_text(TINY.replace("lateral_size = 2.5", "lateral_size = 20.0"))
+    code, out, err = _check([str(path)], capsys)
+    assert code == 0 and "2 mixtures x 2 replicas = 4 runs" in out and "net force below" in out
+    cells = {row[0]: row for row in ([c.strip() for c in line.split("│")[1:-1]] for line in out.splitlines()
+                                     if line.startswith("│"))}
+    assert cells["mono"] == ["mono", "spheres", "0", "150", "3", "11, 12", "sphere-1 (150, 1.0000)"]
+    assert cells["bi-30"] == ["bi-30", "spheres", "0.3", "150", "20", "11, 12", "large (34, 0.7010); small (116, 0.2990)"]
+    assert err.count("\n") == 1 and err.startswith("warning: bi-30: the settled pile will stand about")
+    code, out, err = _check([str(path), "--json"], capsys)
+    result = json.loads(out)
+    assert code == 0 and result["n_runs"] == 4 and [m["seeds"] for m in result["mixtures"]] == [[11, 12], [11, 12]]
+    assert result["mixtures"][1]["lateral_size"] == 20.0 and result["warnings"][0].startswith("bi-30: ")
+    path.write_text(TINY.replace("size = 0.5", "size = -1"))
+    code, out, err = _check([str(path)], capsys)
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert err.startswith(f"error: {path}: mixtures[1] (bi-30): populations[1].size: must be > 0 (got -1)"), err
+    root = Path(__file__).resolve().parents[1] / "examples"
+    for name, n_runs in (("study.toml", 90), ("study-small.toml", 30)):
+        code, out, err = _check([str(root / name), "--json"], capsys)
+        assert code == 0 and json.loads(out)["n_runs"] == n_runs
 
 
 def test_campaign_command_bad_spec_exits_2(tmp_path, capsys):
