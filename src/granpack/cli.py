@@ -168,18 +168,17 @@ def _check_campaign(path: Path, json_output: bool) -> None:
     from granpack.mixture import Mixture
 
     spec = load_campaign(path)
-    rows, warnings, first = [], [], None
+    rows, warnings, configs = [], [], []
     for mix in spec.mixtures:
-        run = next(r for r in spec.runs if r.mixture == mix.name)
-        cfg = load_config_dict(run.config, source=f"{path}: {mix.name}")
-        first = first or cfg
+        runs = [r for r in spec.runs if r.mixture == mix.name]
+        cfg = load_config_dict(runs[0].config, source=f"{path}: {mix.name}")
+        configs.append(cfg)
         mixture = Mixture.from_config(cfg)
         warning = _column_warning(cfg, mixture)
         if warning:
             warnings.append(f"{mix.name}: {warning}")
-        seeds = [r.seed for r in spec.runs if r.mixture == mix.name]
         rows.append({"mixture": mix.name, "family": mix.family, "share": mix.share, "n_particles": cfg.n_particles,
-                     "lateral_size": cfg.lateral_size, "seeds": seeds, "populations": mixture.table()})
+                     "lateral_size": cfg.lateral_size, "seeds": [r.seed for r in runs], "populations": mixture.table()})
     if json_output:
         _print_json({"campaign": str(path), "valid": True, "replicas": spec.replicas, "n_runs": len(spec.runs),
                      "mixtures": rows, "warnings": warnings})
@@ -196,7 +195,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
     console.print(f"{len(spec.mixtures)} mixtures x {spec.replicas} replicas = {len(spec.runs)} runs", markup=False)
     console.print("settings of the first mixture (others differ only where their [[mixtures]] entry says):",
                   markup=False)
-    for line in _settings_lines(first):
+    for line in _settings_lines(configs[0]):
         console.print(line, markup=False)
     for warning in warnings:
         _note(f"warning: {warning}")
