@@ -168,11 +168,11 @@ def _check_campaign(path: Path, json_output: bool) -> None:
     from granpack.mixture import Mixture
 
     spec = load_campaign(path)
-    rows, warnings, configs = [], [], []
+    rows, warnings, first_config = [], [], None
     for mix in spec.mixtures:
         runs = [r for r in spec.runs if r.mixture == mix.name]
         cfg = load_config_dict(runs[0].config, source=f"{path}: {mix.name}")
-        configs.append(cfg)
+        first_config = first_config or cfg
         mixture = Mixture.from_config(cfg)
         warning = _column_warning(cfg, mixture)
         if warning:
@@ -195,7 +195,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
     console.print(f"{len(spec.mixtures)} mixtures x {spec.replicas} replicas = {len(spec.runs)} runs", markup=False)
     console.print("settings of the first mixture (others differ only where their [[mixtures]] entry says):",
                   markup=False)
-    for line in _settings_lines(configs[0]):
+    for line in _settings_lines(first_config):
         console.print(line, markup=False)
     for warning in warnings:
         _note(f"warning: {warning}")
