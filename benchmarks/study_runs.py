@@ -4,12 +4,16 @@
 session gives. A finished run is defined by small files (``granpack.campaign.store``: a valid
 ``analysis.json`` and the ``task.json`` of the same run config); with ``summary.json`` and
 ``timeline.csv`` beside them they hold every figure the campaign's tables and ``granpack
-figures`` read. This script copies those files (not ``final.gsd``) of every finished run between
-a campaign folder and ``benchmarks/study/``:
+figures`` read. A run still in progress is defined by its ``checkpoint.gsd`` (the exact state,
+warm contacts and timeline, some MB) and its ``task.json``: kept too, a run that a session's end
+interrupts goes on in the next session instead of starting afresh. This script copies those files
+(not ``final.gsd``) between a campaign folder and ``benchmarks/study/``:
 
-- ``save OUT``: the finished runs of campaign folder ``OUT`` into ``benchmarks/study/``;
+- ``save OUT``: the finished runs of campaign folder ``OUT`` into ``benchmarks/study/``, and the
+  checkpoints of its unfinished runs (a kept checkpoint of a run that has since finished is removed);
 - ``restore OUT``: the kept runs into ``OUT``, where ``granpack campaign examples/study.toml
-  --out OUT`` then skips them and runs the others;
+  --out OUT`` then skips the finished ones, resumes the checkpointed ones and runs the others
+  (a checkpoint is restored only into a run folder that holds neither a checkpoint nor a result);
 - ``table OUT``: a markdown table, one row per run of ``OUT`` that has an ``analysis.json``
   (bulk solid fraction, N, Ns / Nd / Nt, Nc, rattlers, Q00 with its isotropic baseline, k,
   status and time to rest, CPU minutes).
@@ -33,6 +37,8 @@ from pathlib import Path
 KEPT = Path(__file__).resolve().parent / "study"
 #: the files of a finished run that are kept (final.gsd, some MB, is not)
 FILES = ("task.json", "summary.json", "analysis.json", "timeline.csv")
+#: the files of an unfinished run that are kept: enough for the campaign to resume it
+CHECKPOINT_FILES = ("task.json", "config.toml", "checkpoint.gsd", "progress.log")
 
 
 def _run_folders(root: Path) -> list[Path]:
@@ -50,6 +56,38 @@ def _copy_runs(source: Path, target: Path) -> int:
                 shutil.copy2(run / name, dest / name)
         copied += 1
     return copied
+
+
+def _checkpointed_folders(root: Path) -> list[Path]:
+    """Run folders ``root/<mixture>/seed-<s>`` holding a checkpoint and no ``analysis.json``, sorted."""
+    return sorted(p.parent for p in root.glob("*/seed-*/checkpoint.gsd") if not (p.parent / "analysis.json").is_file())
+
+
+def _copy_checkpoints(source: Path, target: Path, *, replace: bool) -> int:
+    """Copy the unfinished runs of ``source`` into ``target``; with ``replace`` False, only into run
+    folders of ``target`` that hold neither a checkpoint nor an ``analysis.json``."""
+    copied = 0
+    for run in _checkpointed_folders(source):
+        dest = target / run.relative_to(source)
+        if not replace and ((dest / "checkpoint.gsd").is_file() or (dest / "analysis.json").is_file()):
+            continue
+        dest.mkdir(parents=True, exist_ok=True)
+        for name in CHECKPOINT_FILES:
+            if (run / name).is_file():
+                shutil.copy2(run / name, dest / name)
+        copied += 1
+    return copied
+
+
+def _drop_stale_checkpoints(root: Path) -> int:
+    """Remove the kept checkpoint files of runs that ``root`` now holds finished."""
+    dropped = 0
+    for checkpoint in root.glob("*/seed-*/checkpoint.gsd"):
+        if (checkpoint.parent / "analysis.json").is_file():
+            for name in ("checkpoint.gsd", "config.toml", "progress.log"):
+                (checkpoint.parent / name).unlink(missing_ok=True)
+            dropped += 1
+    return dropped
 
 
 def _f(value, fmt: str) -> str:
@@ -84,9 +122,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("campaign", type=Path, help="the campaign output folder")
     args = parser.parse_args(argv)
     if args.action == "save":
-        print(f"kept {_copy_runs(args.campaign, KEPT)} finished runs in {KEPT}", file=sys.stderr)
+        finished = _copy_runs(args.campaign, KEPT)
+        dropped = _drop_stale_checkpoints(KEPT)
+        checkpoints = _copy_checkpoints(args.campaign, KEPT, replace=True)
+        print(f"kept {finished} finished runs and {checkpoints} checkpoints of unfinished runs in {KEPT} "
+              f"({dropped} checkpoints of runs now finished removed)", file=sys.stderr)
     elif args.action == "restore":
-        print(f"restored {_copy_runs(KEPT, args.campaign)} finished runs into {args.campaign}", file=sys.stderr)
+        finished = _copy_runs(KEPT, args.campaign)
+        checkpoints = _copy_checkpoints(KEPT, args.campaign, replace=False)
+        print(f"restored {finished} finished runs and {checkpoints} checkpoints of unfinished runs into "
+              f"{args.campaign}", file=sys.stderr)
     else:
         print(table(args.campaign))
     return 0
