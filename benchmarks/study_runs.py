@@ -46,16 +46,20 @@ def _run_folders(root: Path) -> list[Path]:
     return sorted(p.parent for p in root.glob("*/seed-*/analysis.json"))
 
 
-def _copy_runs(source: Path, target: Path) -> int:
-    copied = 0
-    for run in _run_folders(source):
+def _copy_files(runs: list[Path], source: Path, target: Path, names: tuple[str, ...]) -> int:
+    """Copy the files ``names`` (those present) of each run folder of ``source`` in ``runs`` to the
+    same place under ``target``; returns the number of runs copied."""
+    for run in runs:
         dest = target / run.relative_to(source)
         dest.mkdir(parents=True, exist_ok=True)
-        for name in FILES:
+        for name in names:
             if (run / name).is_file():
                 shutil.copy2(run / name, dest / name)
-        copied += 1
-    return copied
+    return len(runs)
+
+
+def _copy_runs(source: Path, target: Path) -> int:
+    return _copy_files(_run_folders(source), source, target, FILES)
 
 
 def _checkpointed_folders(root: Path) -> list[Path]:
@@ -66,17 +70,10 @@ def _checkpointed_folders(root: Path) -> list[Path]:
 def _copy_checkpoints(source: Path, target: Path, *, replace: bool) -> int:
     """Copy the unfinished runs of ``source`` into ``target``; with ``replace`` False, only into run
     folders of ``target`` that hold neither a checkpoint nor an ``analysis.json``."""
-    copied = 0
-    for run in _checkpointed_folders(source):
-        dest = target / run.relative_to(source)
-        if not replace and ((dest / "checkpoint.gsd").is_file() or (dest / "analysis.json").is_file()):
-            continue
-        dest.mkdir(parents=True, exist_ok=True)
-        for name in CHECKPOINT_FILES:
-            if (run / name).is_file():
-                shutil.copy2(run / name, dest / name)
-        copied += 1
-    return copied
+    runs = [run for run in _checkpointed_folders(source)
+            if replace or not any((target / run.relative_to(source) / name).is_file()
+                                  for name in ("checkpoint.gsd", "analysis.json"))]
+    return _copy_files(runs, source, target, CHECKPOINT_FILES)
 
 
 def _drop_stale_checkpoints(root: Path) -> int:
