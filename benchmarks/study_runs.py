@@ -81,7 +81,7 @@ def _drop_stale_checkpoints(root: Path) -> int:
     dropped = 0
     for checkpoint in root.glob("*/seed-*/checkpoint.gsd"):
         if (checkpoint.parent / "analysis.json").is_file():
-            for name in ("checkpoint.gsd", "config.toml", "progress.log"):
+            for name in set(CHECKPOINT_FILES) - set(FILES):  # task.json stays: the finished run's own
                 (checkpoint.parent / name).unlink(missing_ok=True)
             dropped += 1
     return dropped
