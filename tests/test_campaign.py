@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from granpack.campaign import campaign_from_dict, load_campaign, run_campaign
-from granpack.campaign.runner import estimated_cost, longest_first, selected_runs, status_line
+from granpack.campaign.runner import estimated_cost, run_order, selected_runs, status_line
 from granpack.campaign.store import ANALYSIS_KEYS, flatten, is_finished, run_row, summary_table, write_task
 from granpack.cli import main
 from granpack.config import load_config_dict
@@ -140,14 +140,24 @@ def test_example_campaigns_load():
         assert fall + 15.0 <= config.equilibrium.max_time, (run.mixture, fall)
 
 
-def test_longest_runs_start_first():
+def test_interrupted_runs_then_longest_runs_start_first(tmp_path):
     spec = campaign_from_dict(_tiny_dict())
     costs = [estimated_cost(run) for run in spec.runs]
     assert costs == [150 * 15, 150 * 15, 150 * 6, 150 * 6]
     bad = dataclasses.replace(spec.runs[0], config={**spec.runs[0].config, "n_particles": -1})
     assert estimated_cost(bad) == 0
-    ordered = longest_first([spec.runs[2], bad, spec.runs[0]])
+    ordered = run_order([spec.runs[2], bad, spec.runs[0]], tmp_path)
     assert [estimated_cost(run) for run in ordered] == [2250, 900, 0]
+    # a checkpoint of the short run bi-30/seed-12 puts it first; one left by another config does not
+    resumed, stale = spec.runs[3], spec.runs[2]
+    for run, config in ((resumed, resumed.config), (stale, {**stale.config, "n_particles": 160})):
+        run_dir = tmp_path / run.folder
+        run_dir.mkdir(parents=True)
+        write_task(run_dir, dataclasses.replace(run, config=config))
+        (run_dir / "checkpoint.gsd").write_bytes(b"")
+    ordered = run_order(list(spec.runs), tmp_path)
+    folders = [run.folder.as_posix() for run in ordered]
+    assert folders == ["bi-30/seed-12", "mono/seed-11", "mono/seed-12", "bi-30/seed-11"]
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,8 @@ Each task runs :func:`granpack.simulation.run_packing` then
 
 - skips finished runs (valid ``analysis.json`` for the same run config);
 - only analyses a run whose simulation completed (``summary.json`` and ``final.gsd`` present);
-- resumes a run from its checkpoint when it has one, else starts it afresh;
+- resumes a run from its checkpoint when it has one, else starts it afresh; the interrupted runs
+  start before the others, then the longest first;
 - starts afresh a run whose folder was made for another config (its old outputs are removed);
 - runs only the mixtures asked for, if any (``mixtures``: shell patterns of their names), so that
   machines without a Dask cluster in common can share a campaign, each taking its own mixtures
@@ -234,10 +235,22 @@ def estimated_cost(run: RunSpec) -> int:
     return int(config.n_particles * config.equilibrium.max_time)
 
 
-def longest_first(runs: list[RunSpec]) -> list[RunSpec]:
-    """``runs`` by decreasing :func:`estimated_cost` (stable): the longest runs start first, so that
-    a big run does not start last and leave the other workers idle (longest-processing-time rule)."""
-    return sorted(runs, key=estimated_cost, reverse=True)
+def has_checkpoint(out_dir: Path, run: RunSpec) -> bool:
+    """Whether ``run`` was interrupted in ``out_dir``: a checkpoint in a folder made for this
+    very run config (a task there resumes from it)."""
+    run_dir = Path(out_dir) / run.folder
+    return any(run_dir.glob(_CHECKPOINT_GLOB)) and task_matches(run_dir, run)
+
+
+def run_order(runs: list[RunSpec], out_dir: Path) -> list[RunSpec]:
+    """The order in which ``runs`` start: interrupted runs (:func:`has_checkpoint`) first, then by
+    decreasing :func:`estimated_cost` (stable sort).
+
+    Resuming first finishes the work already paid for before new runs start, so that a campaign
+    stopped again and again carries few checkpoints; the longest runs then start first, so that
+    a big run does not start last and leave the other workers idle (longest-processing-time rule).
+    """
+    return sorted(runs, key=lambda run: (has_checkpoint(out_dir, run), estimated_cost(run)), reverse=True)
 
 
 def _last_line(path: Path) -> str | None:
@@ -271,20 +284,22 @@ def status_line(out_dir: Path, run: RunSpec, since: float | None = None) -> str 
 
 
 def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
-    """Submit ``todo``, retry failures once, show progress (every :data:`_STATUS_SECONDS`, the
+    """Submit ``todo`` (in :func:`run_order`), retry failures once, show progress (every :data:`_STATUS_SECONDS`, the
     :func:`status_line` of each run in progress); returns (done, failed) counts."""
     from distributed import wait
 
     attempts: dict[Path, int] = {}
     active: dict = {}
+    order = run_order(todo, out_dir)
+    priority = {run.folder: len(order) - rank for rank, run in enumerate(order)}  # Dask starts the highest first
 
     def submit(run: RunSpec) -> None:
         attempts[run.folder] = attempts.get(run.folder, 0) + 1
         key = f"granpack-{run.mixture}-seed-{run.seed}-attempt-{attempts[run.folder]}"
-        future = client.submit(run_task, run, str(out_dir), key=key, pure=False, priority=estimated_cost(run))
+        future = client.submit(run_task, run, str(out_dir), key=key, pure=False, priority=priority[run.folder])
         active[future] = run
 
-    for run in longest_first(todo):
+    for run in order:
         submit(run)
     done = failed = 0
     columns = (
