@@ -284,8 +284,9 @@ def status_line(out_dir: Path, run: RunSpec, since: float | None = None) -> str 
 
 
 def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool, errors: dict[Path, str]) -> tuple[int, int]:
-    """Submit ``todo`` (in :func:`run_order`), retry failures once, show progress (every :data:`_STATUS_SECONDS`, the
-    :func:`status_line` of each run in progress); returns (done, failed) counts."""
+    """Submit ``todo`` (in :func:`run_order`), retry failures once, show progress (every
+    :data:`_STATUS_SECONDS`, the :func:`status_line` of each run in progress); returns (done,
+    failed) counts."""
     from distributed import wait
 
     attempts: dict[Path, int] = {}
