@@ -16,7 +16,13 @@ interrupts goes on in the next session instead of starting afresh. This script c
   (a checkpoint is restored only into a run folder that holds neither a checkpoint nor a result);
 - ``table OUT``: a markdown table, one row per run of ``OUT`` that has an ``analysis.json``
   (bulk solid fraction, N, Ns / Nd / Nt, Nc, rattlers, Q00 with its isotropic baseline, k,
-  status and time to rest, CPU minutes).
+  status and time to rest, CPU minutes);
+- ``mixtures OUT``: a markdown table, one row per mixture: runs at rest of runs analysed, bulk
+  solid fraction (mean ± sample standard deviation over every analysed run: a run stopped at the
+  time cap is dense already, its solid fraction moves by less than the seeds' spread), and N, Nc,
+  rattlers, Q00 and Q22 averaged over the runs **at rest** only (a pile still moving has contacts
+  that open and close: its coordination is not that of a packing in equilibrium); a mixture
+  none of whose runs came to rest has them over all its runs, marked ``(cap)``.
 
 Usage::
 
@@ -24,6 +30,7 @@ Usage::
     granpack campaign examples/study.toml --out /work/study --workers 2 --mixture 'pinacoids-*'
     python benchmarks/study_runs.py save /work/study
     python benchmarks/study_runs.py table /work/study
+    python benchmarks/study_runs.py mixtures /work/study
 """
 
 from __future__ import annotations
@@ -113,9 +120,42 @@ def table(root: Path) -> str:
     return "\n".join(lines)
 
 
+def _mean(values: list[float]) -> float:
+    """Mean of the defined ``values`` (NaN where none is)."""
+    kept = [v for v in values if v is not None and v == v]
+    return sum(kept) / len(kept) if kept else float("nan")
+
+
+def _std(values: list[float]) -> float:
+    """Sample standard deviation of ``values`` (NaN with fewer than two)."""
+    if len(values) < 2:
+        return float("nan")
+    m = sum(values) / len(values)
+    return (sum((v - m) ** 2 for v in values) / (len(values) - 1)) ** 0.5
+
+
+def mixtures(root: Path) -> str:
+    lines = ["| mixture | at rest / runs | bulk phi | N | Nc | rattlers | Q00 | Q22 |",
+             "|---|---|---|---|---|---|---|---|"]
+    by_mixture: dict[str, list[dict]] = {}
+    for run in _run_folders(root):
+        by_mixture.setdefault(run.parent.name, []).append(json.loads((run / "analysis.json").read_text()))
+    for name, runs in by_mixture.items():
+        phi = [a["solid_fraction"]["bulk"] for a in runs]
+        rest = [a for a in runs if a.get("status") == "equilibrium"]
+        mark = "" if rest else " (cap)"
+        c = [a["coordination"] for a in rest or runs]
+        o = [a["order"] for a in rest or runs]
+        lines.append(f"| {name} | {len(rest)} / {len(runs)} | {_f(_mean(phi), '.4f')} ± {_f(_std(phi), '.4f')} | "
+                     f"{_f(_mean([x['N'] for x in c]), '.2f')}{mark} | {_f(_mean([x['Nc'] for x in c]), '.2f')}{mark} | "
+                     f"{_f(_mean([x['rattler_fraction'] for x in c]), '.1%')}{mark} | "
+                     f"{_f(_mean([x['Q00'] for x in o]), '.3f')}{mark} | {_f(_mean([x['Q22'] for x in o]), '.3f')}{mark} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("action", choices=("save", "restore", "table"))
+    parser.add_argument("action", choices=("save", "restore", "table", "mixtures"))
     parser.add_argument("campaign", type=Path, help="the campaign output folder")
     args = parser.parse_args(argv)
     if args.action == "save":
@@ -129,8 +169,10 @@ def main(argv: list[str] | None = None) -> int:
         checkpoints = _copy_checkpoints(KEPT, args.campaign, replace=False)
         print(f"restored {finished} finished runs and {checkpoints} checkpoints of unfinished runs into "
               f"{args.campaign}", file=sys.stderr)
-    else:
+    elif args.action == "table":
         print(table(args.campaign))
+    else:
+        print(mixtures(args.campaign))
     return 0
 
 
