@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import statistics
 import sys
 from pathlib import Path
 
@@ -123,15 +124,12 @@ def table(root: Path) -> str:
 def _mean(values: list[float]) -> float:
     """Mean of the defined ``values`` (NaN where none is)."""
     kept = [v for v in values if v is not None and v == v]
-    return sum(kept) / len(kept) if kept else float("nan")
+    return statistics.fmean(kept) if kept else float("nan")
 
 
-def _std(values: list[float]) -> float:
-    """Sample standard deviation of ``values`` (NaN with fewer than two)."""
-    if len(values) < 2:
-        return float("nan")
-    m = sum(values) / len(values)
-    return (sum((v - m) ** 2 for v in values) / (len(values) - 1)) ** 0.5
+#: the per-mixture columns averaged over the runs at rest: (section, key, format)
+_AT_REST_COLUMNS = (("coordination", "N", ".2f"), ("coordination", "Nc", ".2f"),
+                    ("coordination", "rattler_fraction", ".1%"), ("order", "Q00", ".3f"), ("order", "Q22", ".3f"))
 
 
 def mixtures(root: Path) -> str:
@@ -142,14 +140,12 @@ def mixtures(root: Path) -> str:
         by_mixture.setdefault(run.parent.name, []).append(json.loads((run / "analysis.json").read_text()))
     for name, runs in by_mixture.items():
         phi = [a["solid_fraction"]["bulk"] for a in runs]
+        std = statistics.stdev(phi) if len(phi) > 1 else float("nan")
         rest = [a for a in runs if a.get("status") == "equilibrium"]
         mark = "" if rest else " (cap)"
-        c = [a["coordination"] for a in rest or runs]
-        o = [a["order"] for a in rest or runs]
-        lines.append(f"| {name} | {len(rest)} / {len(runs)} | {_f(_mean(phi), '.4f')} ± {_f(_std(phi), '.4f')} | "
-                     f"{_f(_mean([x['N'] for x in c]), '.2f')}{mark} | {_f(_mean([x['Nc'] for x in c]), '.2f')}{mark} | "
-                     f"{_f(_mean([x['rattler_fraction'] for x in c]), '.1%')}{mark} | "
-                     f"{_f(_mean([x['Q00'] for x in o]), '.3f')}{mark} | {_f(_mean([x['Q22'] for x in o]), '.3f')}{mark} |")
+        cells = [f"{_f(_mean([a[section][key] for a in rest or runs]), fmt)}{mark}" for section, key, fmt in _AT_REST_COLUMNS]
+        lines.append(f"| {name} | {len(rest)} / {len(runs)} | {_f(_mean(phi), '.4f')} ± {_f(std, '.4f')} | "
+                     + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
