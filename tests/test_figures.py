@@ -13,7 +13,16 @@ from matplotlib.image import imread
 from granpack.box import Box
 from granpack.contact.contacts import ContactSet
 from granpack.errors import InputError
-from granpack.figures import campaign_figures, make_figures, render_packing, save_figure
+from granpack.figures import (
+    _coordination_figure,
+    _homogeneity_figure,
+    _pair_correlation_figure,
+    _read_runs,
+    campaign_figures,
+    make_figures,
+    render_packing,
+    save_figure,
+)
 from granpack.packing import Packing
 from granpack.rotations import random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere
@@ -98,6 +107,19 @@ def test_campaign_figures_written(campaign_dir):
         assert f"{stem}.png" in names and f"{stem}.svg" in names
     assert all(p.parent == campaign_dir / "figures" for p in paths)
     _check_images(paths)
+
+
+def test_campaign_panels_name_their_grains_and_keep_their_own_g_scale(campaign_dir):
+    """Each family's coordination panel says which grains its share counts; the g(r) panels do
+    not share a y axis (the sphere peaks would flatten the polyhedra's), the homogeneity ones do
+    (one height scale)."""
+    runs = _read_runs(campaign_dir)
+    labels = [ax.get_xlabel() for ax in _coordination_figure(runs).axes]
+    assert labels == ["share of small grains (size d/3), by volume (%)"] * 2 + ["share of flat grains, by volume (%)"]
+    gr = _pair_correlation_figure(campaign_dir, runs).axes
+    assert not any(gr[0].get_shared_y_axes().joined(gr[0], ax) for ax in gr[1:])
+    profiles = _homogeneity_figure(campaign_dir, runs).axes
+    assert all(profiles[0].get_shared_y_axes().joined(profiles[0], ax) for ax in profiles[1:])
 
 
 def test_campaign_figures_chosen_mixtures_and_dispatch(campaign_dir):

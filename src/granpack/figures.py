@@ -409,6 +409,14 @@ def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str) -> F
     return fig
 
 
+def _family_xlabel(family: str) -> str:
+    """The share axis of one family's own panel: which grains the share counts (the panel
+    grouping several families says it for all of them, too long under one family's panel)."""
+    if _panel(family) == "shape":
+        return f"share of {_label(family).removesuffix(' pinacoids')} grains, by volume (%)"
+    return f"{_PANEL_XLABEL[_panel(family)]} (%)"
+
+
 def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
     families = [f for f in _families(runs) if any(len(_series(runs, f, c)) for c, _ in _COORDINATION)]
     if not families:
@@ -421,7 +429,7 @@ def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
             if len(stats):
                 _errorbar(ax, stats, marker="osDv"[k], color=f"C{k}", label=name)
         ax.set_title(_label(family))
-        ax.set_xlabel(f"{_PANEL_XLABEL[_panel(family)]} (%)")
+        ax.set_xlabel(_family_xlabel(family))
         ax.legend()
     axes[0].set_ylabel("contacts per grain (bulk)")
     fig.suptitle("Coordination: all (N), simple (Ns), double (Nd), triple (Nt) contacts")
@@ -488,9 +496,9 @@ def _share_colour(share: float):
     return colormaps["viridis"](0.9 * share) if math.isfinite(share) else "k"
 
 
-def _family_axes(families: list[str], height: float) -> tuple[Figure, np.ndarray]:
+def _family_axes(families: list[str], height: float, sharey: bool) -> tuple[Figure, np.ndarray]:
     fig = Figure(figsize=(5 * len(families), height))
-    axes = fig.subplots(1, len(families), squeeze=False, sharey=True)[0]
+    axes = fig.subplots(1, len(families), squeeze=False, sharey=sharey)[0]
     for ax, family in zip(axes, families):
         ax.set_title(_label(family))
     return fig, axes
@@ -509,7 +517,8 @@ def _pair_correlation_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure |
         curves.setdefault(family, []).append((mixture, share, r0, np.mean(same, axis=0)))
     if not curves:
         return None
-    fig, axes = _family_axes([f for f in _families(runs) if f in curves], 4.5)
+    # each panel its own g scale: the contact peaks of spheres are ten times those of polyhedra
+    fig, axes = _family_axes([f for f in _families(runs) if f in curves], 4.5, sharey=False)
     for ax, family in zip(axes, [f for f in _families(runs) if f in curves]):
         for mixture, share, r, g in curves[family]:
             _plot_gr(ax, r, g, color=_share_colour(share), label=mixture, linewidth=1.0)
@@ -531,7 +540,7 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
     if not curves:
         return None
     families = [f for f in _families(runs) if f in curves]
-    fig, axes = _family_axes(families, 6.0)
+    fig, axes = _family_axes(families, 6.0, sharey=True)
     for ax, family in zip(axes, families):
         for mixture, share, z, substituted in curves[family]:
             colour = _share_colour(share)
