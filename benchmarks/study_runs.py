@@ -153,16 +153,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("action", choices=("save", "restore", "table", "mixtures"))
     parser.add_argument("campaign", type=Path, help="the campaign output folder")
+    parser.add_argument("--kept", type=Path, default=KEPT,
+                        help=f"the folder of kept runs in the repository (default {KEPT.relative_to(KEPT.parents[1])})")
     args = parser.parse_args(argv)
+    kept = args.kept
     if args.action == "save":
-        finished = _copy_runs(args.campaign, KEPT)
-        dropped = _drop_stale_checkpoints(KEPT)
-        checkpoints = _copy_checkpoints(args.campaign, KEPT, replace=True)
-        print(f"kept {finished} finished runs and {checkpoints} checkpoints of unfinished runs in {KEPT} "
+        finished = _copy_runs(args.campaign, kept)
+        dropped = _drop_stale_checkpoints(kept)
+        checkpoints = _copy_checkpoints(args.campaign, kept, replace=True)
+        print(f"kept {finished} finished runs and {checkpoints} checkpoints of unfinished runs in {kept} "
               f"({dropped} checkpoints of runs now finished removed)", file=sys.stderr)
     elif args.action == "restore":
-        finished = _copy_runs(KEPT, args.campaign)
-        checkpoints = _copy_checkpoints(KEPT, args.campaign, replace=False)
+        finished = _copy_runs(kept, args.campaign)
+        checkpoints = _copy_checkpoints(kept, args.campaign, replace=False)
         print(f"restored {finished} finished runs and {checkpoints} checkpoints of unfinished runs into "
               f"{args.campaign}", file=sys.stderr)
     elif args.action == "table":

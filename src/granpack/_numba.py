@@ -1,49 +1,88 @@
-"""The one place where Numba is configured.
+"""The one place where Numba is configured: threading layer, caching, and the kernels' two builds.
 
-Every kernel in granpack is compiled through :func:`jit` so that caching, fastmath and
-parallelism are decided here only. Kernels are compiled on first call and cached on disk
-(``cache=True``), so the second process that imports a kernel pays no compilation.
-
-Threads that wait spin only briefly (``GOMP_SPINCOUNT``, unless the environment sets it): GNU
-OpenMP's default lets an idle worker of a ``prange`` loop spin for about a millisecond, and on a
-machine of two CPUs it then takes one of them from the narrow phase's threads and from the
-sequential kernels that run between two parallel loops (a step of a 3000-pinacoid pile a fifth
-slower; benchmarks/README.md). The variable is read when the OpenMP runtime is loaded, at the
-first parallel loop, so it is set here, before any kernel runs.
+granpack runs its parallel kernels on Numba's ``workqueue`` threading layer unless the
+environment names another (``NUMBA_THREADING_LAYER``): it ships with every Numba, so every
+machine runs the same code path, its idle threads sleep instead of spinning, and it has no
+finalizer to hang at exit (oneTBB's, which Numba picks first where TBB is installed, spins
+forever once Numba code has run in a second thread). A kernel compiled with ``parallel=True``
+is built twice: the parallel build runs when Numba has more than one thread, a serial build
+otherwise, so that a one-thread run wakes no thread at all.
 """
 
 from __future__ import annotations
 
 import os
+import types
 
-os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+#: the threading layer granpack asks for where the environment names none
+THREADING_LAYER = "workqueue"
 
-import numba  # noqa: E402  (after the OpenMP setting above)
+os.environ.setdefault("NUMBA_THREADING_LAYER", THREADING_LAYER)
+os.environ.setdefault("GOMP_SPINCOUNT", "10000")  # OpenMP, if asked for: idle threads spin briefly
 
-__all__ = ["jit", "prange"]
+import numba  # noqa: E402  (after the environment settings above)
+
+__all__ = ["THREADING_LAYER", "ThreadedKernel", "jit", "prange", "thread_count", "threading_layer"]
 
 prange = numba.prange
 
 
+class ThreadedKernel:
+    """A ``prange`` kernel built twice: ``parallel`` for several threads, ``serial`` for one.
+
+    Calling it runs the parallel build when ``numba.get_num_threads() > 1`` and the serial one
+    otherwise (at ``NUMBA_NUM_THREADS=1`` the layer's threads are never started); both give the same result bit for bit (each ``prange`` loop of granpack runs over
+    explicit chunks whose partition does not depend on the thread count). Call it from Python
+    only: a Numba caller would need one build, not a choice between two.
+    """
+
+    def __init__(self, func, **options):
+        self.parallel = numba.njit(parallel=True, **options)(func)
+        serial = types.FunctionType(func.__code__, func.__globals__, func.__name__, func.__defaults__, func.__closure__)
+        serial.__qualname__ = f"{func.__qualname__}_serial"  # its own on-disk cache entry
+        serial.__doc__ = func.__doc__
+        self.serial = numba.njit(parallel=False, **options)(serial)
+        self.__doc__, self.__name__, self.__qualname__ = func.__doc__, func.__name__, func.__qualname__
+        self.__module__, self.__wrapped__ = func.__module__, func
+
+    def __call__(self, *args):
+        return (self.parallel if thread_count() > 1 else self.serial)(*args)
+
+
 def jit(func=None, *, parallel: bool = False, fastmath: bool = False, inline: str = "never"):
-    """Compile ``func`` in nopython mode with on-disk caching.
+    """Compile ``func`` in nopython mode with on-disk caching (``cache=True``) and the GIL released.
 
     Args:
         func: the Python function to compile (decorator use without arguments).
-        parallel: allow ``prange`` loops (thread-parallel); off by default because the
-            engine is deterministic and the target machines have few cores.
+        parallel: the function has ``prange`` loops: build a :class:`ThreadedKernel` (a parallel
+            build for several threads and a serial one for one thread).
         fastmath: allow reassociation of floating-point operations; off by default so
             results are bit-reproducible run to run.
-        inline: ``"always"`` inlines the function into its Numba callers (Numba IR level),
-            for the per-pair kernels of the narrow phase: a compiled call that receives tuples
-            of arrays increfs and decrefs each array, which cost a fifth of the narrow phase on
-            a settled pinacoid pile (benchmarks/README.md); ``"never"`` (default) compiles a
-            separate function. Results are the same bit for bit either way.
+        inline: ``"always"`` inlines the function into its Numba callers (Numba IR level), for
+            the per-pair kernels of the narrow phase, so that a call passing tuples of arrays does
+            not incref and decref each array; ``"never"`` (default) compiles a separate function.
+            Results are the same bit for bit either way.
     """
 
     def wrap(f):
-        return numba.njit(cache=True, parallel=parallel, fastmath=fastmath, nogil=True, inline=inline)(f)
+        options = dict(cache=True, fastmath=fastmath, nogil=True, inline=inline)
+        return ThreadedKernel(f, **options) if parallel else numba.njit(**options)(f)
 
     if func is None:
         return wrap
     return wrap(func)
+
+
+def thread_count() -> int:
+    """The threads a parallel kernel would run on now (``numba.get_num_threads()``), without
+    starting the layer's threads where Numba has only one (``NUMBA_NUM_THREADS=1``)."""
+    return 1 if numba.config.NUMBA_NUM_THREADS == 1 else numba.get_num_threads()
+
+
+def threading_layer() -> str:
+    """The threading layer the parallel builds run on: the one Numba chose where a parallel kernel
+    has run already, else the one configured (``NUMBA_THREADING_LAYER``, ``workqueue`` by default)."""
+    try:
+        return numba.threading_layer()
+    except ValueError:  # no parallel kernel has run yet
+        return numba.config.THREADING_LAYER

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import signal
 import sys
 import threading
@@ -61,7 +62,11 @@ _ABORT = tuple({typer.Abort, getattr(_CLICK.exceptions, "Abort", typer.Abort)})
 
 def _version(value: bool) -> None:
     if value:
-        typer.echo(f"granpack {__version__}")
+        from granpack._numba import numba, thread_count, threading_layer  # granpack's Numba settings first
+
+        threads = thread_count()
+        typer.echo(f"granpack {__version__} (Numba {numba.__version__}, threading layer {threading_layer()}, "
+                   f"{threads} thread{'s' if threads > 1 else ''})")
         raise typer.Exit()
 
 
@@ -579,5 +584,16 @@ def _main(args: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> NoReturn:
-    """Entry point: run the command; exit with its status (0, 1, 2 or 130, module docstring)."""
-    raise SystemExit(_main(sys.argv[1:] if argv is None else list(argv)))
+    """Entry point: run the command; exit with its status (0, 1, 2 or 130, module docstring).
+
+    Where the parallel kernels ran on oneTBB (``NUMBA_THREADING_LAYER=tbb`` in the environment),
+    the process ends without Python's finalisation, once its output is flushed: TBB's finalizer
+    spins for good once Numba code has run in a thread other than the main one (the narrow
+    phase's), and every file of the command is written and closed by then.
+    """
+    code = _main(sys.argv[1:] if argv is None else list(argv))
+    if "granpack._numba" in sys.modules and sys.modules["granpack._numba"].threading_layer() == "tbb":
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    raise SystemExit(code)

@@ -738,6 +738,7 @@ def _headline(summary: dict) -> dict:
 def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | None, c: _Counters,
              report: EquilibriumReport, status: str) -> dict:
     from granpack import __version__
+    from granpack._numba import thread_count, threading_layer
 
     steps = max(c.step, 1)
     n_points = contacts.n_points if contacts is not None else 0
@@ -752,6 +753,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "time_step": config.solver.time_step,
         "wall_time": c.wall_seconds,
         "cpu_time": c.cpu_seconds,
+        "threads": {"numba": thread_count(), "layer": threading_layer()},
         "timing": {
             "deposit_seconds": c.deposit_seconds,
             "detection_seconds": c.detection_seconds,

@@ -75,6 +75,10 @@ _PROGRESS_SECONDS = 2.0  # longest wait between two refreshes of the progress li
 _STATUS_SECONDS = 600.0
 _FINAL_FILE = "final.gsd"
 _CHECKPOINT_GLOB = "checkpoint*"
+#: held by a task while it simulates and analyses: the runs a worker process is given at once (a
+#: worker with several threads) take turns, since the parallel kernels of one process share one
+#: pool of Numba threads, which takes one caller at a time (granpack._numba)
+_ONE_RUN_AT_A_TIME = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -136,11 +140,12 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
             _clear_outputs(run_dir)
             write_task(run_dir, run)
         config = load_config_dict(run.config, source=run.folder.as_posix())
-        if action != "analysed":  # the campaign owns its run folders: a run started afresh replaces what is there
-            run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress="log")
-        with warnings.catch_warnings():  # kept in analysis.json ("warnings"), not printed by the workers
-            warnings.simplefilter("ignore", AnalysisWarning)
-            result = analyze_run(run_dir)
+        with _ONE_RUN_AT_A_TIME:
+            if action != "analysed":  # the campaign owns its run folders: a run started afresh replaces what is there
+                run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress="log")
+            with warnings.catch_warnings():  # kept in analysis.json ("warnings"), not printed by the workers
+                warnings.simplefilter("ignore", AnalysisWarning)
+                result = analyze_run(run_dir)
         clear_error(run_dir)
         return {"status": "done", "action": action, "error": None, "wall_time": time.perf_counter() - start,
                 "warnings": len(result.get("warnings") or [])}

@@ -31,7 +31,8 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
+
+from granpack._numba import thread_count
 import numpy as np
 
 from granpack.contact.broadphase import VerletList
@@ -122,7 +123,7 @@ class Detector:
             grains move little per step (settling, static packings); see benchmarks/README.md.
         eps_f: feature band, rank tolerance and axis hysteresis, d; default ``1e-3 d_min``
             with ``d_min`` the smallest grain size of the shape table.
-        threads: narrow-phase threads; default ``numba.get_num_threads()`` (the CPUs, or
+        threads: narrow-phase threads; default ``thread_count()`` (the CPUs, or
             ``NUMBA_NUM_THREADS``). The candidate pairs are cut into that many row ranges of about
             equal pair counts, each tested by one thread (the kernel releases the GIL); the
             manifolds are the same as with one thread, in the same order.
@@ -140,7 +141,7 @@ class Detector:
         if threads is not None and threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.eps_f = eps_f
-        self.threads = int(threads) if threads is not None else numba.get_num_threads()
+        self.threads = int(threads) if threads is not None else thread_count()
         self._pool: ThreadPoolExecutor | None = None
         self._tables: _Tables | None = None
         self._pair_axis: np.ndarray | None = None  # separating-axis cache, one code per candidate pair

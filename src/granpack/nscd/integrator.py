@@ -59,7 +59,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, replace
 
-import numba
+
+from granpack._numba import thread_count
 import numpy as np
 
 from granpack.contact.contacts import ContactSet
@@ -232,7 +233,7 @@ def predict(state: ParticleState, params: StepParameters) -> Prediction:
     v_free = np.empty((n + 1, 6))
     predict_kernel(
         state.position, state.quaternion, state.velocity, state.omega, np.ascontiguousarray(state.inertia),
-        float(params.time_step), float(params.theta), x_tt, q_tt, rot_tt, inv_iw, v_start, v_free, numba.get_num_threads(),
+        float(params.time_step), float(params.theta), x_tt, q_tt, rot_tt, inv_iw, v_start, v_free, thread_count(),
     )
     x_tt = state.box.wrap(x_tt)
     inv_mass = np.zeros(n + 1)
@@ -301,7 +302,7 @@ def advance(
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
     update_kernel(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
-        state.position, state.quaternion, state.velocity, state.omega, numba.get_num_threads(),
+        state.position, state.quaternion, state.velocity, state.omega, thread_count(),
     )
     damped_energy = 0.0
     if params.damping > 0:

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from granpack._numba import jit, prange
+from granpack._numba import jit, prange, thread_count
 from granpack.nscd.problem import (
     AIN,
     AIS,
@@ -533,7 +533,7 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         else:
             order, bounds = groups
             body, data, offset, r_sorted = _gather_points(order, problem.body, problem.normal_data, problem.offset, rn)
-            threads = numba.get_num_threads()
+            threads = thread_count()
             numba.set_num_threads(min(2, threads))  # the other threads would only join the barriers
             try:
                 it, err, ok = _solve_frictionless_two_parts(body, data, offset, r_sorted, v, bounds, tol, max_it, every,

@@ -51,10 +51,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numba
 import numpy as np
 
-from granpack._numba import jit, prange
+from granpack._numba import jit, prange, thread_count
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["ContactProblem", "assemble", "tangent_frame", "NORMAL_WIDTH", "FRICTION_WIDTH"]
@@ -456,7 +455,7 @@ def assemble(
     lever_j = np.empty((p, 3))
     fdata = np.empty((p if with_friction else 0, FRICTION_WIDTH))
     _assemble_parallel(
-        numba.get_num_threads(),
+        thread_count(),
         np.ascontiguousarray(contacts.body_i, dtype=np.int64),
         np.ascontiguousarray(contacts.body_j, dtype=np.int64),
         np.ascontiguousarray(contacts.shift, dtype=np.float64).reshape(-1, 3),

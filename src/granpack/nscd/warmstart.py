@@ -25,10 +25,9 @@ tangential part clipped to the friction disc ``μ r_n``.
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
-from granpack._numba import jit, prange
+from granpack._numba import jit, prange, thread_count
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["warm_impulses"]
@@ -241,6 +240,6 @@ def warm_impulses(
         float(tolerance),
         float(friction),
         out,
-        numba.get_num_threads(),
+        thread_count(),
     )
     return out, int(matched)

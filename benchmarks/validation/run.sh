@@ -1,0 +1,23 @@
+#!/bin/sh
+# Run sensitivity campaigns into OUT, keeping their runs in the repository as they go.
+#
+#   benchmarks/validation/run.sh OUT CAMPAIGN [PATTERN ...]
+#
+# CAMPAIGN is a file of benchmarks/validation/configs/ without .toml (sensitivity,
+# time-600-seed-1, ...); PATTERNs select its mixtures (granpack campaign --mixture), all if none.
+# The kept runs of benchmarks/validation/runs/CAMPAIGN are restored into OUT/CAMPAIGN first (the
+# finished ones are skipped, the checkpointed ones resumed); the runs are saved back every 15
+# minutes and at the end, so that a stop loses at most the last checkpoint interval.
+set -eu
+out=$1; campaign=$2; shift 2
+here=$(cd "$(dirname "$0")" && pwd)
+kept="$here/runs/$campaign"
+dir="$out/$campaign"
+mkdir -p "$dir" "$kept"
+save() { python "$here/../study_runs.py" save "$dir" --kept "$kept"; }
+python "$here/../study_runs.py" restore "$dir" --kept "$kept"
+set --  $(for p in "$@"; do printf -- '--mixture %s ' "$p"; done)
+( while sleep 900; do save; done ) &
+saver=$!
+trap 'kill $saver 2>/dev/null; save' EXIT
+granpack campaign "$here/configs/$campaign.toml" --out "$dir" --workers 2 "$@"
