@@ -428,3 +428,78 @@ def test_a_local_worker_ignores_sigint_and_logs_only_critical_distributed_messag
         assert not logging.getLogger("distributed.worker").isEnabledFor(logging.ERROR)
     finally:
         logger.setLevel(saved)
+
+
+# ----------------------------------------------------------------------------- a folder's owner
+
+
+def _finished_under_another_config(tmp_path: Path, spec) -> list:
+    """Fake finished runs of ``spec`` in ``tmp_path``, each computed for another max_time."""
+    for run in spec.runs:
+        other = dataclasses.replace(run, config={**run.config, "equilibrium": {"max_time": 99.0}})
+        folder = tmp_path / run.folder
+        folder.mkdir(parents=True)
+        (folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, 0.7)))
+        write_task(folder, other)
+    return [tmp_path / run.folder / "analysis.json" for run in spec.runs]
+
+
+def test_a_campaign_rerun_with_an_edited_config_refuses_to_replace_its_runs(tmp_path, capsys):
+    """An edited campaign file over a folder of finished runs: exit 2 naming the runs and
+    --overwrite; nothing touched (the runs' files, no campaign.toml written)."""
+    path = tmp_path / "c.toml"
+    path.write_text(TINY)
+    out = tmp_path / "out"
+    kept = _finished_under_another_config(out, load_campaign(path))
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(path), "--out", str(out)])
+    assert info.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "4 run(s) there were computed for another config" in err
+    assert "mono/seed-11" in err and "--overwrite" in err
+    assert all(p.is_file() for p in kept) and not (out / "campaign.toml").exists()
+
+
+def test_overwrite_lets_an_edited_campaign_replace_its_runs_and_drops_the_stale_figures(tmp_path):
+    from granpack.campaign.runner import _check_folder, changed_runs
+
+    spec = load_campaign_from_text(tmp_path, TINY)
+    _finished_under_another_config(tmp_path, spec)
+    (tmp_path / "figures").mkdir()
+    (tmp_path / "figures" / "solid_fraction.png").write_bytes(b"png")
+    assert changed_runs(tmp_path, spec.runs) == list(spec.runs)
+    _check_folder(tmp_path, spec.runs, overwrite=True)
+    assert not (tmp_path / "figures").exists()
+    for run in spec.runs:  # the runs' own task records match now: nothing reported as changed
+        write_task(tmp_path / run.folder, run)
+    assert changed_runs(tmp_path, spec.runs) == []
+
+
+def load_campaign_from_text(folder: Path, text: str):
+    path = folder / "campaign-spec.toml"
+    path.write_text(text)
+    return load_campaign(path)
+
+
+def test_a_run_and_a_campaign_each_refuse_the_others_folder(tmp_path, capsys):
+    """`run` into a campaign's folder and `campaign` into a run's folder: exit 2, one line, nothing written."""
+    run_config = tmp_path / "run.toml"
+    run_config.write_text('n_particles = 20\nlateral_size = 3.0\n[[populations]]\nshape = "sphere"\nsize = 1.0\n'
+                          'volume_fraction = 1.0\n')
+    spec = tmp_path / "c.toml"
+    spec.write_text(TINY)
+    campaign_dir = tmp_path / "campaign"
+    campaign_dir.mkdir()
+    (campaign_dir / "runs.csv").write_text("mixture\n")
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(run_config), "--out", str(campaign_dir)])
+    assert info.value.code == 2 and "is a campaign's folder (runs.csv)" in capsys.readouterr().err
+    assert sorted(p.name for p in campaign_dir.iterdir()) == ["runs.csv"]
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "config.toml").write_text("# granpack run config\n")
+    (run_dir / "summary.json").write_text("{}")
+    with pytest.raises(SystemExit) as info:
+        main(["campaign", str(spec), "--out", str(run_dir)])
+    assert info.value.code == 2 and "holds a single run" in capsys.readouterr().err
+    assert sorted(p.name for p in run_dir.iterdir()) == ["config.toml", "summary.json"]

@@ -177,7 +177,8 @@ def test_no_command_version_and_help_from_the_installed_entry_point():
     version = subprocess.run(granpack + ["--version"], capture_output=True, text=True)
     from granpack import __version__
 
-    assert (version.returncode, version.stdout, version.stderr) == (0, f"granpack {__version__}\n", "")
+    assert (version.returncode, version.stderr) == (0, "")
+    assert version.stdout.startswith(f"granpack {__version__} (Numba ") and "threading layer" in version.stdout
     usage = subprocess.run(granpack + ["runn"], capture_output=True, text=True)
     assert usage.returncode == 2 and "No such command 'runn'" in _one_error_line(usage.stderr)
     helped = subprocess.run(granpack + ["run", "--help"], capture_output=True, text=True)

@@ -121,6 +121,13 @@ def test_message_names_file_and_field_path():
         (pinacoids(output={"snapshot_interval": -1}), "output.snapshot_interval", ">= 0"),
         (with_population(1, name="a\nb"), "populations[1].name", "letters"),
         (with_population(1, size=1.0), "populations", "same name"),
+        # values that would exhaust memory or the kernels' integers: refused by `check` as by `run`
+        (pinacoids(n_particles=10**12), "n_particles", "<= 2e+06"),
+        (pinacoids(lateral_size=1e6), "lateral_size", "contact-grid cells"),
+        (pinacoids(solver={"max_iterations": 10**20}), "solver.max_iterations", "<= 1e+07"),
+        (pinacoids(solver={"time_step": 10.0}, equilibrium={"max_time": 3.0}), "solver.time_step",
+         "below equilibrium.max_time"),
+        (pinacoids(equilibrium={"check_interval": 1e-9}), "equilibrium.check_interval", "at least solver.time_step"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_field(data, field, words):

@@ -416,6 +416,8 @@ def campaign(
         None, "--mixture", help="Run only the mixtures matching this name or shell pattern, e.g. 'spheres-*' (repeatable; "
         "default all). The tables still list every run."
     ),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Recompute the runs that OUT holds for another config "
+                                   "of the same mixture and seed (an edited campaign file); refused without it."),
 ) -> None:
     """A sweep of mixtures x replicas; rerunning skips finished runs and resumes interrupted ones.
 
@@ -427,7 +429,8 @@ def campaign(
 
     loaded = load_campaign(spec)
     try:
-        report = run_campaign(loaded, out, scheduler=scheduler, workers=workers, mixtures=mixture or None)
+        report = run_campaign(loaded, out, scheduler=scheduler, workers=workers, mixtures=mixture or None,
+                              overwrite=overwrite)
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
             raise

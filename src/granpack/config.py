@@ -24,7 +24,7 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, ValidationInfo, field_validator
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, ValidationInfo, field_validator, model_validator
 
 from granpack.errors import InputError
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Sphere, polyhedron_of_size
@@ -46,6 +46,11 @@ __all__ = [
 AUTO_ALERT_FRACTION = 0.02
 #: the volume shares of the populations must sum to 1 within this tolerance
 SHARE_TOLERANCE = 1e-6
+#: most grains in a run: some 10 GB of memory for a settled pile of pinacoids
+MAX_PARTICLES = 2_000_000
+#: most cells of the contact grid over the cell's area (cells of the smallest grain's size):
+#: some GB of grid for a pile a few grains tall
+MAX_GRID_CELLS = 50_000_000
 
 _NAME_PATTERN = re.compile(r"^[\w.+-][\w .+-]{0,63}$")
 
@@ -175,7 +180,7 @@ class SolverConfig(_Model):
         "is solved to `tolerance` instead of `settling_tolerance` (for good); the equilibrium window only "
         "counts checks made with it.",
     )
-    max_iterations: int = Field(default=2000, ge=1, description="Most NLGS sweeps per time step.")
+    max_iterations: int = Field(default=2000, ge=1, le=10_000_000, description="Most NLGS sweeps per time step.")
     theta: _Number = Field(default=0.5, ge=0.5, le=1, description="Theta of the Moreau-Jean scheme, in [0.5, 1].")
     alert_distance: Optional[_Number] = Field(
         default=None,
@@ -192,7 +197,7 @@ class SolverConfig(_Model):
         "velocities, and a turn by phi moves a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for "
         "0.05 rad and R = 0.5 d).",
     )
-    check_every: int = Field(default=10, ge=1, description="NLGS sweeps between two convergence checks.")
+    check_every: int = Field(default=10, ge=1, le=10_000_000, description="NLGS sweeps between two convergence checks.")
     recovery_slop: _Number = Field(
         default=5e-4,
         ge=0,
@@ -309,7 +314,7 @@ class EquilibriumConfig(_Model):
     wall_tolerance: _Number = Field(
         default=1e-4, gt=0, description="Bound on |weight - wall force| / weight (global vertical balance)."
     )
-    window: int = Field(default=5, ge=1, description="Consecutive checks that must all pass.")
+    window: int = Field(default=5, ge=1, le=10_000_000, description="Consecutive checks that must all pass.")
     check_interval: _Number = Field(default=0.25, gt=0, description="Simulated time between two checks, sqrt(d/g).")
 
 
@@ -345,7 +350,7 @@ class RunConfig(_Model):
     """
 
     seed: int = Field(default=1, ge=0, description="Seed of the random generator (deposit, orientations).")
-    n_particles: int = Field(default=3000, ge=1, description="Number of grains N.")
+    n_particles: int = Field(default=3000, ge=1, le=MAX_PARTICLES, description="Number of grains N.")
     populations: Annotated[tuple[PopulationConfig, ...], Strict(False)] = Field(
         min_length=1, description="The grain populations ([[populations]] tables)."
     )
@@ -387,7 +392,25 @@ class RunConfig(_Model):
                 f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
                 f"pair interacts through at most one periodic image (got {lateral_size:g})"
             )
+        smallest = min(p.size for p in populations)
+        cells = (lateral_size / (smallest + alert)) ** 2
+        if cells > MAX_GRID_CELLS:
+            largest_side = (smallest + alert) * math.sqrt(MAX_GRID_CELLS)
+            raise ValueError(
+                f"must be at most {largest_side:.6g} d: a {lateral_size:g} d cell holds {cells:.3g} contact-grid cells "
+                f"of the smallest grain's size {smallest:g} d, more than the {MAX_GRID_CELLS:.3g} granpack allocates"
+            )
         return lateral_size
+
+    @model_validator(mode="after")
+    def _check_times(self) -> "RunConfig":
+        h, end = self.solver.time_step, self.equilibrium.max_time
+        if not h < end:
+            raise ValueError(f"solver.time_step: must be below equilibrium.max_time = {end:g} sqrt(d/g) (got {h:g})")
+        if self.equilibrium.check_interval < h:
+            raise ValueError(f"equilibrium.check_interval: must be at least solver.time_step = {h:g} sqrt(d/g) "
+                             f"(got {self.equilibrium.check_interval:g})")
+        return self
 
     @property
     def largest_size(self) -> float:

@@ -328,6 +328,8 @@ def _current_layout(row: list) -> list:
 #: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
 RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, "analysis.json",
              "packing.png")
+#: files that make a folder a campaign's (``granpack campaign`` writes them): no run goes there
+CAMPAIGN_FILES = ("campaign.toml", "runs.csv", "summary.csv")
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
 RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
@@ -434,6 +436,10 @@ def _claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: b
     """
     if resume and overwrite:
         raise InputError("--resume and --overwrite exclude each other: continue the run in the folder, or replace it")
+    campaign = [name for name in CAMPAIGN_FILES if (out_dir / name).is_file()]
+    if campaign:
+        raise InputError(f"{out_dir}: is a campaign's folder ({', '.join(campaign)}); a run goes into a folder of its own: "
+                         "choose another --out folder")
     output_folder(out_dir)
     present = [name for name in RUN_FILES if (out_dir / name).is_file()]
     config_path = out_dir / CONFIG_FILE

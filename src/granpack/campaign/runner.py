@@ -32,6 +32,7 @@ import contextlib
 import fnmatch
 import logging
 import os
+import shutil
 import signal
 import threading
 import time
@@ -39,7 +40,7 @@ import traceback
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Iterator
+from typing import TYPE_CHECKING, Iterable, Iterator
 
 import pandas as pd
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -51,6 +52,7 @@ from granpack.campaign.store import (
     SUMMARY_FILE,
     clear_error,
     is_finished,
+    read_task,
     runs_table,
     task_matches,
     write_error,
@@ -64,7 +66,7 @@ from granpack.io.atomic import output_folder
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["CampaignReport", "run_campaign", "run_task", "selected_runs", "status_line", "MAX_ATTEMPTS"]
+__all__ = ["CampaignReport", "changed_runs", "run_campaign", "run_task", "selected_runs", "status_line", "MAX_ATTEMPTS"]
 
 #: attempts per task (the first run and one retry)
 MAX_ATTEMPTS = 2
@@ -375,6 +377,35 @@ def selected_runs(spec: CampaignSpec, mixtures: list[str] | None) -> tuple[RunSp
     return tuple(run for run in spec.runs if any(fnmatch.fnmatchcase(run.mixture, p) for p in mixtures))
 
 
+def changed_runs(out_dir: Path, runs: Iterable[RunSpec]) -> list[RunSpec]:
+    """The runs whose folders in ``out_dir`` hold the work (outputs or a checkpoint) of another
+    config than theirs: what running them would replace."""
+    changed = []
+    for run in runs:
+        run_dir = out_dir / run.folder
+        work = [name for name in (ANALYSIS_FILE, SUMMARY_FILE, _FINAL_FILE) if (run_dir / name).is_file()]
+        if (work or any(run_dir.glob(_CHECKPOINT_GLOB))) and read_task(run_dir) is not None and not task_matches(run_dir, run):
+            changed.append(run)
+    return changed
+
+
+def _check_folder(out_dir: Path, runs: tuple[RunSpec, ...], overwrite: bool) -> None:
+    """Refuse a folder that holds a single run, or runs of another config without ``overwrite``
+    (then remove the stale campaign figures)."""
+    from granpack.simulation import CONFIG_FILE, RUN_FILES
+
+    if (out_dir / CONFIG_FILE).is_file() and any((out_dir / name).is_file() for name in RUN_FILES):
+        raise InputError(f"--out {out_dir}: holds a single run (granpack run); a campaign goes into a folder of its own")
+    changed = changed_runs(out_dir, runs)
+    if changed and not overwrite:
+        names = ", ".join(run.folder.as_posix() for run in changed[:4]) + (f" and {len(changed) - 4} more" if len(changed) > 4 else "")
+        raise InputError(f"--out {out_dir}: {len(changed)} run(s) there were computed for another config of the same "
+                         f"mixture and seed ({names}): --overwrite recomputes them with this campaign file, or choose "
+                         "another --out folder")
+    if changed and (out_dir / "figures").is_dir():
+        shutil.rmtree(out_dir / "figures")
+
+
 def run_campaign(
     spec: CampaignSpec,
     out_dir: str | Path,
@@ -383,6 +414,7 @@ def run_campaign(
     workers: int | None = None,
     progress: bool = True,
     mixtures: list[str] | None = None,
+    overwrite: bool = False,
 ) -> CampaignReport:
     """Run every unfinished (mixture, replica) of ``spec`` and write the result tables.
 
@@ -398,14 +430,18 @@ def run_campaign(
             (``"spheres-*"``), e.g. to share a campaign between machines that have no Dask
             cluster in common, each with its own patterns and the same output folder (copied
             together afterwards); ``None``: every mixture. The tables always list every run.
+        overwrite: recompute the runs whose folders hold the work of another config of the same
+            (mixture, seed) (the campaign file was edited), and remove the campaign's figures,
+            drawn from the runs replaced; without it such a campaign is refused.
 
     Returns:
         The report with both tables. The tables are written even when interrupted.
 
     Raises:
         InputError: bad ``workers``/``scheduler`` combination, a pattern that matches no
-            mixture, an unreachable scheduler, or an ``out_dir`` that is a file or cannot be
-            created.
+            mixture, an unreachable scheduler, an ``out_dir`` that is a file or cannot be
+            created, holds a single run, or holds runs of another config and ``overwrite`` is
+            not given.
         KeyboardInterrupt: Ctrl-C; the tables are written, the runs' checkpoints are kept, and a
             new call goes on from them.
     """
@@ -415,6 +451,7 @@ def run_campaign(
         raise InputError("--workers applies to the local cluster only; leave it out with --scheduler")
     selected = selected_runs(spec, mixtures)
     out_dir = Path(out_dir).resolve()
+    _check_folder(out_dir, selected, overwrite)
     output_folder(out_dir)
     if spec.source_text:
         (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
