@@ -10,7 +10,7 @@ reports the slower. Per run: wall seconds, user and system CPU seconds of the ch
 Cases (``--case``, repeatable; default both):
 
 - ``demo``: ``examples/demo.toml`` (300 isometric pinacoids, 3 d cell) poured to certified rest;
-- ``pinacoids-1000``: 1000 isometric pinacoids in a 4 d cell, seed 11, poured to t = 10 sqrt(d/g)
+- ``pinacoids-1000``: 1000 isometric pinacoids in a 4 d cell, seed 11, poured to t = 5 sqrt(d/g)
   (the pour and the collapse, the costliest part of a step's work).
 
 Prints one JSON object per (case, layer, threads, alone | paired).
@@ -44,7 +44,7 @@ size = 1.0
 volume_fraction = 1.0
 
 [equilibrium]
-max_time = 10.0
+max_time = 5.0
 """
 LAYERS = ("workqueue", "omp", "tbb")
 

@@ -22,14 +22,25 @@ Usage::
 
     python benchmarks/sensitivity.py configs                 # (re)write benchmarks/validation/configs/
     benchmarks/validation/run.sh OUT 'regime-lmgc_*' ...       # run, keeping the runs in the repository
-    python benchmarks/sensitivity.py csv OUT                  # benchmarks/validation/sensitivity.csv
+    python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
+    python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
+
+``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
+setting of each cell, seeds 1 and 2 of the same mixtures in ``benchmarks/study/``. ``phi_bed``
+is the mean of the run's solid-fraction profile over the bed less a skin of ``BED_SKIN`` d at
+the floor and below the surface (the surface: the highest level of the profile above
+``SURFACE_PHI``), the figure of a bed too thin for a bulk region; ``phi_corrected`` is the bulk
+solid fraction over ``1 + k`` (k: the expansion coefficient in its work form, as the study's).
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import csv
+import json
 import math
+import statistics
 import sys
 import tomllib
 from pathlib import Path
@@ -38,6 +49,15 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 STUDY = ROOT / "examples" / "study.toml"
 CONFIGS = HERE / "validation" / "configs"
+KEPT = HERE / "validation" / "runs"
+STUDY_RUNS = HERE / "study"
+CSV = HERE / "validation" / "sensitivity.csv"
+#: skin left out of the bed at the floor and below the surface, d
+BED_SKIN = 1.0
+#: the surface of the bed: the highest level of the profile whose solid fraction is above this
+SURFACE_PHI = 0.3
+COLUMNS = ("mixture", "factor", "setting", "seed", "grains", "cell", "status", "t", "phi", "phi_std", "phi_bed", "k",
+           "phi_corrected", "N", "Ns", "Nd", "Nt", "Nc", "rattler_fraction", "Q00", "Q22", "cpu_s")
 
 #: the study engine's contact regime: no push-back, no projection of overlaps
 LMGC_REGIME = {"recovery_rate": 0.0, "overlap_slop": 0.0, "pour_overlap_slop": 0.0}
@@ -137,14 +157,95 @@ def write_configs() -> list[Path]:
     return written
 
 
+def _bed_phi(profile_z: list[float], profile_phi: list[float]) -> float:
+    """Mean solid fraction of the bed less ``BED_SKIN`` at the floor and below the surface."""
+    dense = [z for z, phi in zip(profile_z, profile_phi) if phi > SURFACE_PHI]
+    if not dense:
+        return float("nan")
+    top = max(dense)
+    kept = [phi for z, phi in zip(profile_z, profile_phi) if BED_SKIN <= z <= top - BED_SKIN]
+    return statistics.fmean(kept) if kept else float("nan")
+
+
+def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
+    a = json.loads((run / "analysis.json").read_text())
+    s = json.loads((run / "summary.json").read_text())
+    task = json.loads((run / "task.json").read_text())
+    phi, c, o = a["solid_fraction"], a["coordination"], a["order"]
+    return {"mixture": mixture, "factor": factor, "setting": setting, "seed": a["seed"], "grains": a["n_particles"],
+            "cell": task["config"].get("lateral_size", 8.0), "status": s["status"], "t": round(s["simulated_time"], 3),
+            "phi": phi["bulk"], "phi_std": phi["std"], "phi_bed": _bed_phi(phi["profile_z"], phi["profile_phi"]),
+            "k": a["interpenetration"]["expansion_k"], "phi_corrected": phi.get("corrected_for_overlap"),
+            "N": c["N"], "Ns": c["Ns"], "Nd": c["Nd"], "Nt": c["Nt"], "Nc": c["Nc"],
+            "rattler_fraction": c["rattler_fraction"], "Q00": o.get("Q00"), "Q22": o.get("Q22"),
+            "cpu_s": round(s.get("cpu_time") or float("nan"), 1)}
+
+
+def rows() -> list[dict]:
+    """One row per finished run of the sensitivity study, the reference runs first."""
+    varied = sorted(KEPT.glob("*/*/seed-*/analysis.json"))
+    out, references = [], set()
+    for path in varied:
+        factor, _, mixture = path.parent.parent.name.partition("_")
+        references.add(mixture)
+    for mixture in sorted(references):
+        for seed in (1, 2) if not mixture.startswith("time") else ():
+            run = STUDY_RUNS / mixture / f"seed-{seed}"
+            if (run / "analysis.json").is_file():
+                out.append(_row(run, mixture, "default", "default"))
+    for path in varied:
+        factor, _, mixture = path.parent.parent.name.partition("_")
+        out.append(_row(path.parent, mixture, factor, factor.partition("-")[2]))
+    return out
+
+
+def write_csv(table: list[dict]) -> None:
+    with CSV.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer.writeheader()
+        for row in table:
+            writer.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def _cell(values: list) -> str:
+    kept = [v for v in values if v is not None and v == v]
+    if not kept:
+        return "–"
+    if len(kept) == 1:
+        return f"{kept[0]:.4g}"
+    return f"{statistics.fmean(kept):.4g} ± {statistics.stdev(kept):.2g}"
+
+
+def markdown(table: list[dict]) -> str:
+    """A row per (mixture, factor): mean ± std over its seeds."""
+    keys = ("phi", "phi_bed", "k", "phi_corrected", "N", "Nc", "Q00")
+    lines = ["| mixture | factor | runs (at rest) | " + " | ".join(keys) + " |", "|---|---|---|" + "---|" * len(keys)]
+    cells: dict[tuple[str, str], list[dict]] = {}
+    for row in table:
+        cells.setdefault((row["mixture"], row["factor"]), []).append(row)
+    for (mixture, factor), runs in sorted(cells.items()):
+        rest = sum(r["status"] == "equilibrium" for r in runs)
+        lines.append(f"| {mixture} | {factor} | {len(runs)} ({rest}) | "
+                     + " | ".join(_cell([r[k] for r in runs]) for k in keys) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="action", required=True)
     sub.add_parser("configs", help="write the campaign files of benchmarks/validation/configs/")
+    sub.add_parser("csv", help="write benchmarks/validation/sensitivity.csv from the kept runs")
+    sub.add_parser("table", help="print the markdown table of the kept runs")
     args = parser.parse_args(argv)
     if args.action == "configs":
         for path in write_configs():
             print(path.relative_to(ROOT))
+    elif args.action == "csv":
+        table = rows()
+        write_csv(table)
+        print(f"{len(table)} runs in {CSV.relative_to(ROOT)}", file=sys.stderr)
+    else:
+        print(markdown(rows()))
     return 0
 
 

@@ -1,16 +1,17 @@
-"""Yade reference for the sphere settling benchmark (issue 18): 1000 frictionless spheres poured
-into a 4 d x 4 d periodic cell and settled, timed in CPU seconds back to back with
-``bench_settle.py --case spheres-1000``. Run with the Debian package ``yade``::
+"""Yade reference for the sphere settling benchmark: 1000 frictionless spheres poured into an
+L x L periodic cell (default 4 d) and settled, timed in CPU seconds back to back with
+``bench_settle.py --case spheres-1000`` (4 d) or ``granpack run`` of the same spheres. Run with
+the Debian package ``yade``::
 
-    yade -n -x benchmarks/yade_spheres.py [seed]
+    yade -n -x benchmarks/yade_spheres.py [seed] [L]
 
 Soft-contact DEM, so its choices set its cost: d = 1 m, rho = 2500 kg/m^3, g = 9.81, Young's
 modulus 1e9 Pa (overlaps about 1e-3 d under the pile's weight, the rigid grains' 1e-4 d being
 out of reach at a reasonable time step), Poisson 0.3, friction angle 0, linear contact law
 (``Law2_ScGeom_FrictPhys_CundallStrack``), Cundall's numerical damping 0.2 (``NewtonIntegrator``),
 time step half the P-wave step. The spheres start as a random loose cloud (``makeCloud``,
-periodic, 1 d to 110 d above the floor: makeCloud cannot place 1000 spheres in much less, a looser
-start than granpack's drop deposit, about 55 d tall). Stop: Yade's
+periodic, from 1 d above the floor up to 110 d x (4 d / L)^2: makeCloud cannot place 1000
+spheres in much less, a looser start than granpack's drop deposit). Stop: Yade's
 ``unbalancedForce()`` (mean net force over mean contact force) below 1e-3, a looser test than
 granpack's per-grain criteria, checked every 500 steps. Prints one JSON line: CPU and wall
 seconds, steps, simulated time in sqrt(d/g), the mean coordination and the largest overlap.
@@ -27,15 +28,17 @@ from yade.wrapper import (Bo1_Facet_Aabb, Bo1_Sphere_Aabb, ForceResetter, FrictM
 from yade.minieigenHP import Matrix3
 
 seed = int(sys.argv[1]) if len(sys.argv) > 1 else 11
-L, N, G = 4.0, 1000, 9.81
+L = float(sys.argv[2]) if len(sys.argv) > 2 else 4.0
+N, G = 1000, 9.81
+TOP = 1.0 + 109.0 * (4.0 / L) ** 2
 O.periodic = True
 O.cell.hSize = Matrix3(L, 0, 0, 0, L, 0, 0, 0, 200.0)
 O.materials.append(FrictMat(young=1e9, poisson=0.3, frictionAngle=0.0, density=2500.0))
 cloud = pack.SpherePack()
-cloud.makeCloud((0, 0, 1.0), (L, L, 110.0), rMean=0.5, rRelFuzz=0.0, num=N, periodic=True, seed=seed)
+cloud.makeCloud((0, 0, 1.0), (L, L, TOP), rMean=0.5, rRelFuzz=0.0, num=N, periodic=True, seed=seed)
 cloud.toSimulation()
-for i in range(4):  # the floor: 32 triangles (a body as wide as the periodic cell is not allowed)
-    for j in range(4):
+for i in range(int(L)):  # the floor: 2 L^2 triangles (a body as wide as the periodic cell is not allowed)
+    for j in range(int(L)):
         a, b, c, d = (i, j, 0), (i + 1, j, 0), (i + 1, j + 1, 0), (i, j + 1, 0)
         O.bodies.append([utils.facet([a, b, c], fixed=True), utils.facet([a, c, d], fixed=True)])
 O.engines = [
