@@ -56,3 +56,41 @@ def test_a_failed_write_leaves_the_destination_and_no_temporary(tmp_path):
             tmp.write_text("half")
             raise RuntimeError("boom")
     assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_a_folder_the_system_refuses_is_named_not_the_hidden_temporary(tmp_path, monkeypatch, capsys):
+    """A write into a folder one cannot write: the error names the file asked for, and the CLI
+    reports it as a system error (exit 1), one line."""
+    import granpack.io.atomic as atomic
+    from granpack.cli import main
+
+    def refused(path):
+        raise PermissionError(13, "Permission denied", str(path.parent / f".{path.stem}.0123abcd.tmp{path.suffix}"))
+
+    monkeypatch.setattr(atomic, "_create_temporary", refused)
+    target = tmp_path / "summary.json"
+    with pytest.raises(PermissionError) as info:
+        write_text_atomic(target, "{}")
+    assert info.value.filename == str(target) and info.value.strerror == "Permission denied"
+    config = tmp_path / "run.toml"
+    config.write_text('n_particles = 5\nlateral_size = 3.0\n[[populations]]\nshape = "sphere"\nsize = 1.0\n'
+                      'volume_fraction = 1.0\n')
+    with pytest.raises(SystemExit) as exit_info:
+        main(["run", str(config), "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 1 and err.count("\n") == 1 and ".tmp" not in err
+    assert err.startswith(f"error: {tmp_path / 'out' / 'config.toml'}: Permission denied")
+
+
+def test_an_output_folder_the_system_cannot_create_is_a_system_error(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from granpack.io.atomic import output_folder
+
+    def refused(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "mkdir", refused)
+    with pytest.raises(OSError) as info:
+        output_folder(tmp_path / "new")
+    assert info.value.filename == str(tmp_path / "new") and "Permission denied" in info.value.strerror

@@ -26,7 +26,8 @@ def output_folder(path: Path, option: str = "--out") -> None:
     """Create the output folder ``path`` (and its parents) if needed.
 
     Raises:
-        InputError: ``path`` is a file, or cannot be created (one line naming ``option``).
+        InputError: ``path`` is a file or has a file in its path (one line naming ``option``).
+        OSError: the system refuses to create it (permissions), naming ``path``.
     """
     from granpack.errors import InputError
 
@@ -34,8 +35,10 @@ def output_folder(path: Path, option: str = "--out") -> None:
         raise InputError(f"{option} {path}: is a file, not a folder")
     try:
         path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(f"{option} {path}: cannot create the folder ({exc.strerror})") from None
+    except FileExistsError:  # a file on the way: a path that cannot be a folder
+        raise InputError(f"{option} {path}: cannot create the folder (a file is in its path)") from None
+    except OSError as exc:  # the system refuses (permissions, a read-only disk): a system error
+        raise OSError(exc.errno, f"cannot create the folder ({exc.strerror})", str(path)) from None
 
 
 def _create_temporary(path: Path) -> Path:
@@ -57,15 +60,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` (same suffix); rename it to ``path`` on success.
 
     The folder of ``path`` must exist. The temporary file exists, empty, with the mode of a new
-    file (0666 less the umask); writers that open it for writing keep that mode.
+    file (0666 less the umask); writers that open it for writing keep that mode. An
+    :class:`OSError` on the temporary file (a folder one cannot write, a full disk) is raised
+    naming ``path``, the file the caller asked for.
     """
     path = Path(path)
-    tmp = _create_temporary(path)
+    try:
+        tmp = _create_temporary(path)
+    except OSError as exc:
+        raise _naming(exc, path) from None
     try:
         yield tmp
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.filename is not None and Path(exc.filename) == tmp:
+            raise _naming(exc, path) from None
+        raise
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def _naming(exc: OSError, path: Path) -> OSError:
+    """``exc`` as the same system error on ``path``."""
+    return OSError(exc.errno, exc.strerror or str(exc), str(path))
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
