@@ -160,7 +160,12 @@ class _Counters:
     timeline: list = field(default_factory=list)  # one row per equilibrium check, TIMELINE_COLUMNS
 
     def as_dict(self) -> dict:
-        return dict(self.__dict__)
+        """The counters for a checkpoint's JSON metadata: the timeline's NaN and infinities as the
+        strings ``"nan"``, ``"inf"``, ``"-inf"`` (JSON would make them ``null``)."""
+        saved = dict(self.__dict__)
+        saved["timeline"] = [[v if not isinstance(v, float) or math.isfinite(v) else repr(v) for v in row]
+                             for row in self.timeline]
+        return saved
 
 
 def step_parameters(config: RunConfig) -> StepParameters:
@@ -306,7 +311,9 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
                           population=s.population, position=s.position, quaternion=s.quaternion,
                           velocity=s.velocity, omega=s.omega, time=s.time)
     counters = _Counters(**meta["counters"])
-    counters.timeline = [_current_layout(row) for row in counters.timeline]
+    # non-finite values come back from their strings; a checkpoint of an older version wrote null
+    counters.timeline = [_current_layout([math.nan if v is None else float(v) if isinstance(v, str) else v for v in row])
+                         for row in counters.timeline]
     return state, saved.contacts, counters
 
 
