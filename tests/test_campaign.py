@@ -344,7 +344,9 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
 
     monkeypatch.setattr(runner, "_STATUS_SECONDS", 0.0)  # a status round at every refresh (2 s)
     report = run_campaign(dataclasses.replace(spec, runs=good + (bad,)), out, workers=2)
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.err  # progress and notes on stderr, nothing on stdout (no bar off a terminal)
+    assert captured.out == ""
     status = [line.removeprefix("running ").split(": ", 1) for line in printed.splitlines() if line.startswith("running ")]
     assert status  # each a whole line of the run's progress.log, however long (not wrapped at 80 columns)
     assert all(text in (out / folder / "progress.log").read_text().splitlines() for folder, text in status)
@@ -378,9 +380,13 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
     with pytest.raises(SystemExit) as info:
         main(["campaign", str(spec_path), "--out", str(out), "--workers", "2"])
     assert info.value.code == 0
-    printed = capsys.readouterr().out
+    captured = capsys.readouterr()
+    printed = captured.err
     assert "done    mono/seed-12 (analysed" in printed and "done    bi-30/seed-12 (" in printed
-    assert "mono/seed-11" not in printed.split("4 runs")[0]  # finished runs are not resubmitted
+    assert "mono/seed-11" not in printed  # finished runs are not resubmitted
+    at_rest = int((pd.read_csv(out / "runs.csv")["run.status"] == "equilibrium").sum())
+    assert captured.out.startswith(f"4 runs: 4 done (2 already finished; {at_rest} at rest, {4 - at_rest} stopped at "
+                                   "the time cap), 0 failed")
     after = _mtimes(out, good)
     assert after[good[0].folder] == before[good[0].folder] and after[good[2].folder] == before[good[2].folder]
     assert after[good[1].folder] > before[good[1].folder] and after[good[3].folder] > before[good[3].folder]

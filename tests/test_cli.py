@@ -605,9 +605,27 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     path = tmp_path / "tiny.toml"
     path.write_text(TINY_RUN)
     simulation.run_packing(load_config(path), tmp_path / "r", progress="lines")
-    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("settling t = ")]
+    printed = capsys.readouterr().err.splitlines()
+    lines = [line for line in printed if line.startswith("settling t = ") and "(at the last check" not in line]
     assert len(lines) == 4 and lines[-1].startswith("settling t = 1.00/1 sqrt(d/g), step 200, ")
     assert "steps/s" in lines[-1]
+    # between two checks too: every step is due here, each line with the last check's time
+    between = [line for line in printed if line.endswith("(at the last check, t = 0.25)")]
+    assert len(between) == 50 and between[0].startswith("settling t = 0.26/1 sqrt(d/g), step 51, ")
+
+
+def test_progress_lines_come_between_checks_far_apart(tmp_path, capsys, monkeypatch):
+    """A check interval longer than the line interval: lines still come, not only at checks."""
+    import granpack.simulation as simulation
+
+    from granpack.config import load_config
+
+    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 1.0\ncheck_interval = 0.5"))
+    simulation.run_packing(load_config(path), tmp_path / "r", progress="lines")
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("settling t = ")]
+    assert len(lines) > 2 and any(line.endswith("(at the last check, t = 0.50)") for line in lines)
 
 
 def test_progress_log_takes_the_lines_and_notes_and_overwrite_removes_it(tmp_path, capsys, monkeypatch):
@@ -625,8 +643,9 @@ def test_progress_log_takes_the_lines_and_notes_and_overwrite_removes_it(tmp_pat
     assert capsys.readouterr().err == ""
     lines = (out / "progress.log").read_text().splitlines()
     assert lines[0].startswith("pouring 20 grains") and lines[1].startswith("poured in")
-    assert [line.split(", step")[0] for line in lines[2:-1]] == [f"settling t = {t:.2f}/1 sqrt(d/g)"
-                                                                  for t in (0.25, 0.5, 0.75, 1.0)]
+    at_checks = [line for line in lines[2:-1] if "(at the last check" not in line]
+    assert [line.split(", step")[0] for line in at_checks] == [f"settling t = {t:.2f}/1 sqrt(d/g)"
+                                                                for t in (0.25, 0.5, 0.75, 1.0)]
     assert lines[-1].startswith("not at rest at t = 1 sqrt(d/g) after ") and "largest net force" in lines[-1]
     simulation.run_packing(load_config(path), out, resume=True, progress="log")
     assert (out / "progress.log").read_text().splitlines()[-1].endswith("nothing to resume, its summary stands")
@@ -687,3 +706,14 @@ def test_a_resolved_config_of_an_older_version_is_granpacks_own(tmp_path, capsys
     code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)
     assert code == 0, err
     assert (out / "config.toml").read_text() == load_config(config).to_toml()
+
+
+def test_run_warns_before_pouring_a_pile_too_short_for_a_bulk_region(tmp_path, capsys):
+    """The warning `check` gives comes from `run` too, on stderr, before the work starts."""
+    config = tmp_path / "thin.toml"
+    config.write_text(TINY_RUN)  # 20 spheres in a 3 d cell: about 2 d tall
+    with pytest.raises(SystemExit) as info:
+        main(["run", str(config), "--out", str(tmp_path / "run")])
+    assert info.value.code == 0
+    err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith("warning: the settled pile will stand about") and "bulk region" in err[0]

@@ -366,10 +366,15 @@ def run(
     """
     from granpack.config import load_config
 
+    from granpack.mixture import Mixture
+
     cfg = load_config(config)
     if seed is not None:
         cfg = cfg.with_seed(seed)
     _protect_input(config, out, cfg.to_toml())
+    warning = _column_warning(cfg, Mixture.from_config(cfg))
+    if warning is not None and not resume:  # before hours of work, not only in `check`
+        _note(f"warning: {warning}")
     again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
     summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output)
     if json_output:
@@ -440,7 +445,8 @@ def campaign(
                     "as with run --resume)", 130) from None
     chosen = f" of mixtures {', '.join(mixture)}" if mixture else ""
     typer.echo(
-        f"{report.n_runs} runs{chosen}: {report.n_done} done ({report.n_skipped} already finished), "
+        f"{report.n_runs} runs{chosen}: {report.n_done} done ({report.n_skipped} already finished; "
+        f"{report.n_at_rest} at rest, {report.n_done - report.n_at_rest} stopped at the time cap), "
         f"{report.n_failed} failed; tables in {out / 'runs.csv'} and {out / 'summary.csv'}"
     )
     if report.n_failed:

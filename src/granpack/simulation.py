@@ -626,6 +626,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                 counters.solver_seconds += info.solver_seconds
             counters.step += 1
             counters.split_steps += 1 if substeps > 1 else 0
+            bar.tick(state.time)
 
             if counters.step % check_every == 0:
                 report = check_equilibrium(state, contacts, step_h, criteria=criteria)
@@ -815,7 +816,9 @@ class _SettlingProgress:
     terminal, the figures after the bar are cut to the width left. ``"lines"``: one line every
     :data:`_PROGRESS_LINE_SECONDS` of wall time (the first at the first check): simulated time,
     step, steps per second, total kinetic energy, largest net force, contacts, largest overlap,
-    criteria met, written by ``write``; ``"log"``: the same. ``"off"``: nothing.
+    criteria met, written by ``write``; a line falling due between two checks (a long
+    ``check_interval``) gives the figures of the last check and its time; ``"log"``: the same.
+    ``"off"``: nothing.
     """
 
     def __init__(self, mode: str, max_time: float, time_step: float, write: _Lines):
@@ -826,6 +829,7 @@ class _SettlingProgress:
         self._bar = None
         self._task = None
         self._last: tuple[float, float] | None = None  # (wall clock, simulated time) of the last line
+        self._checked: tuple | None = None  # the last check's figures and its simulated time
 
     def __enter__(self):
         if self.mode == "bar":
@@ -855,17 +859,30 @@ class _SettlingProgress:
                     f"W {report.wall_force_over_weight:.4f}  overlap {overlap:.1e}")
             self._bar.update(self._task, completed=min(t, self.max_time), info=info)
         elif self.mode in ("lines", "log"):
-            now = time.perf_counter()
-            if self._last is not None and now - self._last[0] < _PROGRESS_LINE_SECONDS:
-                return
-            rate = ""
-            if self._last is not None and now > self._last[0]:
-                rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
-            self._last = (now, t)
-            self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
-                       f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
-                       f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
-                       f"criteria met: {_criteria_met(report)} ({passes}/{window} checks)")
+            self._checked = (ek, n_contacts, report, passes, window, overlap, t)
+            self._line(t, time.perf_counter())
+
+    def tick(self, t: float) -> None:
+        """After each step: a line in ``"lines"`` / ``"log"`` mode when one is due since the last."""
+        if self._checked is None or self.mode not in ("lines", "log"):
+            return
+        now = time.perf_counter()
+        if now - self._last[0] >= _PROGRESS_LINE_SECONDS:
+            self._line(t, now)
+
+    def _line(self, t: float, now: float) -> None:
+        if self._last is not None and now - self._last[0] < _PROGRESS_LINE_SECONDS:
+            return
+        ek, n_contacts, report, passes, window, overlap, t_check = self._checked
+        rate = ""
+        if self._last is not None and now > self._last[0]:
+            rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
+        self._last = (now, t)
+        when = "" if t_check == t else f" (at the last check, t = {t_check:.2f})"
+        self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
+                   f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
+                   f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
+                   f"criteria met: {_criteria_met(report)} ({passes}/{window} checks){when}")
 
     def __exit__(self, *exc):
         if self._bar is not None:

@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Iterable, Iterator
 
 import pandas as pd
+from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from granpack.analysis._base import AnalysisWarning
@@ -92,6 +93,8 @@ class CampaignReport:
         n_skipped: runs already finished before this call.
         n_done: runs finished now (computed by this call, or skipped).
         n_failed: runs that failed twice in this call.
+        n_at_rest: runs asked for that are finished at certified rest (the others done stopped at
+            the time cap, ``equilibrium.max_time``).
         runs: the runs table written to ``runs.csv``.
         summary: the per-mixture table written to ``summary.csv``.
     """
@@ -100,6 +103,7 @@ class CampaignReport:
     n_skipped: int
     n_done: int
     n_failed: int
+    n_at_rest: int
     runs: pd.DataFrame
     summary: pd.DataFrame
 
@@ -318,7 +322,8 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
         TimeElapsedColumn(),
     )
     started, last_status = time.time(), time.monotonic()
-    with Progress(*columns, disable=not progress, transient=False) as bar:
+    console = Console(stderr=True, soft_wrap=True)  # progress and notes on stderr, a line each however long
+    with Progress(*columns, console=console, disable=not progress or not console.is_terminal, transient=False) as bar:
         task = bar.add_task("runs", total=len(todo), done=0, running=0, failed=0)
         while active:
             finished = [future for future in active if future.done()]
@@ -334,15 +339,15 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                     done += 1
                     n_warnings = outcome.get("warnings") or 0
                     note = f"; {n_warnings} analysis warning(s) in its analysis.json" if n_warnings else ""
-                    bar.console.print(f"done    {label} ({outcome['action']}, {outcome['wall_time']:.1f} s{note})",
-                                      markup=False, highlight=False)
+                    console.print(f"done    {label} ({outcome['action']}, {outcome['wall_time']:.1f} s{note})",
+                                  markup=False, highlight=False)
                 elif attempts[run.folder] < MAX_ATTEMPTS:
-                    bar.console.print(f"retry   {label}: {outcome['error']}")
+                    console.print(f"retry   {label}: {outcome['error']}", markup=False, highlight=False)
                     submit(run)
                 else:
                     failed += 1
                     errors[run.folder] = outcome["error"]
-                    bar.console.print(f"[red]failed[/red]  {label}: {outcome['error']}")
+                    console.print(f"failed  {label}: {outcome['error']}", markup=False, highlight=False)
             # tasks given to a worker, some of them queued there behind the one each thread runs
             processing = {key for keys in client.processing().values() for key in keys}
             running = min(len(processing), sum(client.nthreads().values()))
@@ -352,7 +357,7 @@ def _execute(client: Client, todo: list[RunSpec], out_dir: Path, progress: bool,
                 for future, run in active.items():
                     line = status_line(out_dir, run, since=started) if future.key in processing else None
                     if line is not None:
-                        bar.console.print(line, markup=False, highlight=False, soft_wrap=True)  # one line in a log
+                        console.print(line, markup=False, highlight=False)
             if active:
                 try:  # block until a run ends (a bounded wait, to refresh the running count)
                     wait(list(active), timeout=_PROGRESS_SECONDS, return_when="FIRST_COMPLETED")
@@ -466,11 +471,14 @@ def run_campaign(
     finally:
         table = runs_table(out_dir, spec.runs, errors)
         summary = write_tables(out_dir, table)
+    asked = table["path"].isin([run.folder.as_posix() for run in selected])
+    at_rest = table["run.status"] == "equilibrium" if "run.status" in table else pd.Series(False, index=table.index)
     return CampaignReport(
         n_runs=len(selected),
         n_skipped=n_skipped,
         n_done=n_skipped + done,
         n_failed=failed,
+        n_at_rest=int((asked & at_rest & (table["status"] == "done")).sum()),
         runs=table,
         summary=summary,
     )
