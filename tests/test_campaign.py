@@ -509,3 +509,14 @@ def test_a_run_and_a_campaign_each_refuse_the_others_folder(tmp_path, capsys):
         main(["campaign", str(spec), "--out", str(run_dir)])
     assert info.value.code == 2 and "holds a single run" in capsys.readouterr().err
     assert sorted(p.name for p in run_dir.iterdir()) == ["config.toml", "summary.json"]
+
+
+def test_the_substituted_grains_are_the_population_whose_share_the_mixture_gives():
+    from granpack.campaign.store import substituted
+
+    spec = campaign_from_dict(_tiny_dict())
+    assert [substituted(run) for run in spec.runs] == ["", "", "sphere, size 0.5 d", "sphere, size 0.5 d"]
+    flat = dataclasses.replace(spec.runs[2], config={**spec.runs[2].config, "populations": [
+        {"shape": "pinacoid", "size": 1.0, "volume_fraction": 0.7},
+        {"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 3.0], "volume_fraction": 0.3}]})
+    assert substituted(flat) == "pinacoid 1 x 3, size 1 d"

@@ -28,10 +28,10 @@ from granpack.rotations import random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere
 from granpack.state import ParticleState
 
-FAMILIES = {  # family -> (shares, shape of the runs)
-    "spheres": ((0.0, 0.13, 0.30), "sphere"),
-    "pinacoids": ((0.0, 0.30, 1.0), "pinacoid"),
-    "flat": ((0.28, 0.77, 1.0), "pinacoid"),
+FAMILIES = {  # family -> (shares, shape of the runs, the grains the share counts)
+    "spheres": ((0.0, 0.13, 0.30), "sphere", "sphere, size 0.333 d"),
+    "pinacoids": ((0.0, 0.30, 1.0), "pinacoid", "pinacoid, size 0.333 d"),
+    "flat": ((0.28, 0.77, 1.0), "pinacoid", "pinacoid 1 x 3, size 1 d"),
 }
 
 
@@ -70,7 +70,7 @@ def campaign_dir(tmp_path, rng):
     from granpack.campaign.store import flatten
 
     rows = []
-    for family, (shares, shape) in FAMILIES.items():
+    for family, (shares, shape, grains) in FAMILIES.items():
         for share in shares:
             mixture = f"{family}-{round(100 * share)}"
             for seed in (1, 2):
@@ -79,7 +79,7 @@ def campaign_dir(tmp_path, rng):
                 run_dir.mkdir(parents=True)
                 (run_dir / "analysis.json").write_text(json.dumps(analysis))
                 row = dict(path=f"{mixture}/seed-{seed}", mixture=mixture, family=family, share=share, shapes=shape,
-                           replica=seed - 1, seed=seed, status="done", error=None)
+                           substituted=grains if share > 0 else "", replica=seed - 1, seed=seed, status="done", error=None)
                 row.update(flatten(analysis))
                 rows.append(row)
     rows.append(dict(path="broken/seed-1", mixture="broken", family="flat", share=0.5, shapes="pinacoid", replica=0,
@@ -115,7 +115,12 @@ def test_campaign_panels_name_their_grains_and_keep_their_own_g_scale(campaign_d
     (one height scale)."""
     runs = _read_runs(campaign_dir)
     labels = [ax.get_xlabel() for ax in _coordination_figure(runs).axes]
-    assert labels == ["share of small grains (size d/3), by volume (%)"] * 2 + ["share of flat grains, by volume (%)"]
+    assert labels == ["share of small grains (size 0.333 d), by volume (%)"] * 2 + ["share of flat grains, by volume (%)"]
+    # the sizes are the campaign's own: another size ratio, another label; a family of its own, its grains
+    runs.loc[runs["family"] == "spheres", "substituted"] = "sphere, size 0.1 d"
+    assert [ax.get_xlabel() for ax in _coordination_figure(runs).axes][0] == "share of small grains (size 0.1 d), by volume (%)"
+    runs.loc[runs["family"] == "spheres", "family"] = "fines"
+    assert "share of the sphere, size 0.1 d grains" in [ax.get_xlabel() for ax in _coordination_figure(runs).axes][-1]
     gr = _pair_correlation_figure(campaign_dir, runs).axes
     assert not any(gr[0].get_shared_y_axes().joined(gr[0], ax) for ax in gr[1:])
     profiles = _homogeneity_figure(campaign_dir, runs).axes

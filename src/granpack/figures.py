@@ -70,11 +70,6 @@ FAMILIES: dict[str, tuple[str, str, str]] = {
     "flat": ("flat pinacoids", "v", "shape"),
     "flat-elongated": ("flat & elongated pinacoids", "D", "shape"),
 }
-_PANEL_XLABEL = {
-    "size": "share of small grains (size d/3), by volume",
-    "shape": "share of elongated / flat / flat & elongated grains, by volume",
-    "other": "share of substituted grains, by volume",
-}
 #: the shape families' share-0 point: monodisperse isometric pinacoids
 _REFERENCE_FAMILY = "pinacoids"
 _COORDINATION = (("coordination.N", "N"), ("coordination.Ns", "Ns"), ("coordination.Nd", "Nd"), ("coordination.Nt", "Nt"))
@@ -402,19 +397,26 @@ def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str) -> F
     for ax, panel in zip(axes, [p for p in ("size", "shape", "other") if p in groups]):
         for family in groups[panel]:
             _errorbar(ax, _series(runs, family, column), marker=_marker(family), label=_label(family))
-        ax.set_xlabel(f"{_PANEL_XLABEL[panel]} (%)")
+        ax.set_xlabel(_panel_xlabel(runs, groups[panel]))
         ax.legend()
     axes[0].set_ylabel(ylabel)
     fig.suptitle(title)
     return fig
 
 
-def _family_xlabel(family: str) -> str:
-    """The share axis of one family's own panel: which grains the share counts (the panel
-    grouping several families says it for all of them, too long under one family's panel)."""
-    if _panel(family) == "shape":
-        return f"share of {_label(family).removesuffix(' pinacoids')} grains, by volume (%)"
-    return f"{_PANEL_XLABEL[_panel(family)]} (%)"
+def _panel_xlabel(runs: pd.DataFrame, families: list[str]) -> str:
+    """The share axis of a panel: which grains the share counts, from the campaign's own
+    mixtures (the ``substituted`` column of the runs table) where they say it."""
+    if all(_panel(f) == "shape" for f in families):
+        return f"share of {' / '.join(_label(f).removesuffix(' pinacoids') for f in families)} grains, by volume (%)"
+    grains = runs.loc[runs["family"].isin(families) & (runs["share"] > 0), "substituted"] if "substituted" in runs else []
+    kinds = sorted({g for g in grains if isinstance(g, str) and g})
+    sizes = sorted({g.rpartition("size ")[2] for g in kinds})
+    if len(sizes) == 1 and all(_panel(f) == "size" for f in families):
+        return f"share of small grains (size {sizes[0]}), by volume (%)"
+    if len(kinds) == 1:
+        return f"share of the {kinds[0]} grains, by volume (%)"
+    return "share of the substituted grains, by volume (%)"
 
 
 def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
@@ -429,7 +431,7 @@ def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
             if len(stats):
                 _errorbar(ax, stats, marker="osDv"[k], color=f"C{k}", label=name)
         ax.set_title(_label(family))
-        ax.set_xlabel(_family_xlabel(family))
+        ax.set_xlabel(_panel_xlabel(runs, [family]))
         ax.legend()
     axes[0].set_ylabel("contacts per grain (bulk)")
     fig.suptitle("Coordination: all (N), simple (Ns), double (Nd), triple (Nt) contacts")

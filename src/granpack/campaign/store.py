@@ -172,6 +172,21 @@ def flatten(mapping: dict, prefix: str = "") -> dict[str, Any]:
     return out
 
 
+def substituted(run: RunSpec) -> str:
+    """The grains a mixture's ``share`` counts, in words: the population whose volume fraction is
+    the share (``"pinacoid, size 0.333 d"``, ``"pinacoid 2 x 1"``), or ``""`` when none is."""
+    if run.share is None:
+        return ""
+    for population in run.config["populations"]:
+        if abs(float(population.get("volume_fraction", -1.0)) - run.share) < 1e-6 and run.share > 0:
+            words = str(population.get("shape", ""))
+            aspect = population.get("aspect")
+            if aspect is not None and tuple(aspect) != (1.0, 1.0):
+                words += f" {aspect[0]:g} x {aspect[1]:g}"
+            return f"{words}, size {float(population.get('size', 1.0)):.3g} d"
+    return ""
+
+
 def run_row(out_dir: Path, run: RunSpec, error: str | None = None) -> dict[str, Any]:
     """The runs-table row of one run, read from its folder.
 
@@ -190,6 +205,7 @@ def run_row(out_dir: Path, run: RunSpec, error: str | None = None) -> dict[str, 
         "mixture": run.mixture,
         "family": run.family,
         "share": math.nan if run.share is None else run.share,
+        "substituted": substituted(run),
         "shapes": run.shapes,
         "replica": run.replica,
         "seed": run.seed,
