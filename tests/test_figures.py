@@ -162,6 +162,8 @@ def test_render_packing_draws_every_grain(tmp_path, rng):
     # 9 spheres of 72 facets (12 meridians) and 9 pinacoids of 8 faces; back faces are culled
     assert 9 * (8 + 72) // 3 < n_faces < 9 * (8 + 72)
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["spheres", "flat-elongated"]
+    # the x and y axes meet at (0, 0): no 0 tick on either, so their labels do not collide there
+    assert 0.0 not in ax.get_xticks() and 0.0 not in ax.get_yticks()
     _check_images(save_figure(fig, tmp_path, "packing"))
 
 
@@ -202,3 +204,13 @@ def test_run_figures_skip_an_empty_pair_correlation(tmp_path, rng):
     assert paths.skipped["pair_correlation"].startswith("g(r) is empty (no bulk region")
     assert paths.skipped["packing"] == f"no final.gsd in {tmp_path}"
     assert {p.stem for p in paths} == {"solid_fraction_profile", "homogeneity"}
+
+
+def test_a_run_of_one_population_has_no_homogeneity_figure_and_says_why(tmp_path, rng):
+    analysis = _analysis(rng, 0.0, 1, 0.1)
+    analysis["homogeneity"]["proportions"] = {"large": analysis["homogeneity"]["proportions"]["large"]}
+    analysis["homogeneity"]["nominal"] = {"large": 1.0}
+    (tmp_path / "analysis.json").write_text(json.dumps(analysis))
+    paths = make_figures(tmp_path)
+    assert "homogeneity" not in {p.stem for p in paths}
+    assert paths.skipped["homogeneity"] == "one population: its volume proportion is 1 at every height"

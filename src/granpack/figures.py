@@ -39,6 +39,7 @@ from matplotlib import colormaps
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
+from matplotlib.ticker import MaxNLocator
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from granpack.errors import InputError
@@ -180,6 +181,9 @@ def render_packing(
     ax.set_ylim(0, ly)
     ax.set_zlim(0, top)
     ax.set_box_aspect((lx, ly, top))
+    # the x and y axes meet at the corner (0, 0): without their 0 ticks, the labels there do not collide
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MaxNLocator(nbins=4, prune="lower"))
     ax.set_xlabel("x (d)")
     ax.set_ylabel("y (d)")
     ax.set_zlabel("z (d)")
@@ -306,6 +310,8 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
     z, profiles, nominal = _homogeneity(analysis)
     if not any(_finite(p) for p in profiles.values()):
         written.skipped["homogeneity"] = "no volume proportion profile in analysis.json"
+    elif len(profiles) < 2:
+        written.skipped["homogeneity"] = "one population: its volume proportion is 1 at every height"
     else:
         fig = Figure(figsize=(4.5, 6))
         ax = fig.add_subplot()
