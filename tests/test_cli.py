@@ -716,4 +716,5 @@ def test_run_warns_before_pouring_a_pile_too_short_for_a_bulk_region(tmp_path, c
         main(["run", str(config), "--out", str(tmp_path / "run")])
     assert info.value.code == 0
     err = capsys.readouterr().err.splitlines()
-    assert err[0].startswith("warning: the settled pile will stand about") and "bulk region" in err[0]
+    warned = [line for line in err if line.startswith("warning: the settled pile will stand about")]
+    assert warned and "bulk region" in warned[0] and err.index(warned[0]) < err.index(next(l for l in err if l.startswith("pouring")))

@@ -280,3 +280,10 @@ def test_example_lateral_sizes_and_families():
                ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
                 "pinacoids-flat-elongated.toml")}
     assert aspects == {(1.0, 1.0), (2.0, 1.0), (1.0, 3.0), (2.0, 3.0)}
+
+
+def test_settings_outside_their_usual_range_are_named_as_advisories():
+    assert load_config_dict(pinacoids()).advisories() == []
+    notes = load_config_dict(pinacoids(solver={"time_step": 0.02, "tolerance": 0.01},
+                                       equilibrium={"max_time": 10.0})).advisories()
+    assert [note.split(" = ")[0] for note in notes] == ["solver.time_step", "solver.tolerance", "equilibrium.max_time"]

@@ -214,3 +214,15 @@ def test_a_run_of_one_population_has_no_homogeneity_figure_and_says_why(tmp_path
     paths = make_figures(tmp_path)
     assert "homogeneity" not in {p.stem for p in paths}
     assert paths.skipped["homogeneity"] == "one population: its volume proportion is 1 at every height"
+
+
+def test_the_order_figure_shows_the_deposit_before_gravity_beside_the_final_order(campaign_dir):
+    from granpack.figures import _versus_share
+
+    runs = _read_runs(campaign_dir)
+    runs["run.initial_order.Q00"] = 0.02
+    fig = _versus_share(runs, "order.Q00", "Q00", "Orientational order", before="run.initial_order.Q00")
+    labels = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
+    assert "flat pinacoids: initial state" in labels and "flat pinacoids" in labels
+    dashed = [line for ax in fig.axes for line in ax.get_lines() if line.get_linestyle() == "--"]
+    assert dashed and all(np.allclose(line.get_ydata(), 0.02) for line in dashed)

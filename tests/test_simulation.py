@@ -550,3 +550,22 @@ def test_a_shaken_pile_comes_back_to_certified_rest(tmp_path):
     summary = run_packing(config, tmp_path / "shaken", progress=False)
     assert summary["end_game"]["shakes"] >= 1
     assert summary["status"] == STATUS_AT_REST and summary["equilibrium"]["kinetic_energy"] < 1e-8
+
+
+def test_the_deposit_order_is_recorded_before_gravity_acts(tmp_path):
+    """summary.json carries the Q00 / Q22 of the deposit: 1 for grains all aligned, near the
+    isotropic baseline for the drop's random orientations, nan for spheres."""
+    from granpack.analysis.order import isotropic_baseline
+
+    config = load_config_dict({"n_particles": 60, "lateral_size": 3.0, "seed": 4, "equilibrium": {"max_time": 0.05},
+                               "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [2.0, 1.0],
+                                                "volume_fraction": 1.0}]})
+    state, _ = simulation.initial_state(config)
+    mean, std, _, _ = isotropic_baseline(state.n)
+    assert abs(simulation._deposit_order(state)["Q00"] - mean) < 5 * std
+    aligned = replace(state, quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (state.n, 1)))
+    assert simulation._deposit_order(aligned) == pytest.approx({"Q00": 1.0, "Q22": 1.0})
+    summary = run_packing(config, tmp_path / "run", progress=False)
+    assert summary["initial_order"] == pytest.approx(simulation._deposit_order(state))
+    spheres = run_packing(sphere_config(n=20, max_time=0.05), tmp_path / "spheres", progress=False)
+    assert math.isnan(spheres["initial_order"]["Q00"])

@@ -106,6 +106,12 @@ _PHI_ONE_SIZE = 0.6
 _PHI_MIXED_SIZES = 0.72
 
 
+def _warnings_of(cfg, mixture) -> list[str]:
+    """What `check` and `run` warn of: settings outside their usual range, a pile too short."""
+    column = _column_warning(cfg, mixture)
+    return cfg.advisories() + ([column] if column else [])
+
+
 def _column_warning(cfg, mixture) -> str | None:
     """A warning when the settled pile is expected to be too low for a bulk region (else None).
 
@@ -179,8 +185,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
         cfg = load_config_dict(runs[0].config, source=f"{path}: {mix.name}")
         first_config = first_config or cfg
         mixture = Mixture.from_config(cfg)
-        warning = _column_warning(cfg, mixture)
-        if warning:
+        for warning in _warnings_of(cfg, mixture):
             warnings.append(f"{mix.name}: {warning}")
         rows.append({"mixture": mix.name, "family": mix.family, "share": mix.share, "n_particles": cfg.n_particles,
                      "lateral_size": cfg.lateral_size, "seeds": [r.seed for r in runs], "populations": mixture.table()})
@@ -223,13 +228,13 @@ def check(
         return
     cfg = load_config(config)
     mixture = Mixture.from_config(cfg)
-    warning = _column_warning(cfg, mixture)
+    found = _warnings_of(cfg, mixture)
     if json_output:
         _print_json({
             "config": str(config), "valid": True, "n_particles": mixture.n_particles,
             "lateral_size": cfg.lateral_size, "seed": cfg.seed, "alert_distance": cfg.resolved_alert_distance,
             "mixture": mixture.table(), "resolved": cfg.model_dump(mode="json"),
-            "warnings": [warning] if warning else [],
+            "warnings": found,
         })
         return
     table = Table(title=Text(f"{config}: mixture of N = {mixture.n_particles} grains"))
@@ -247,7 +252,7 @@ def check(
                   f"{'' if cfg.solver.alert_distance is not None else ' (automatic)'}", markup=False)
     for line in _settings_lines(cfg):
         console.print(line, markup=False)
-    if warning:
+    for warning in found:
         _note(f"warning: {warning}")
 
 
@@ -372,9 +377,9 @@ def run(
     if seed is not None:
         cfg = cfg.with_seed(seed)
     _protect_input(config, out, cfg.to_toml())
-    warning = _column_warning(cfg, Mixture.from_config(cfg))
-    if warning is not None and not resume:  # before hours of work, not only in `check`
-        _note(f"warning: {warning}")
+    if not resume:  # before hours of work, not only in `check`
+        for warning in _warnings_of(cfg, Mixture.from_config(cfg)):
+            _note(f"warning: {warning}")
     again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
     summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output)
     if json_output:

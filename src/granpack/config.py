@@ -412,6 +412,22 @@ class RunConfig(_Model):
                              f"(got {self.equilibrium.check_interval:g})")
         return self
 
+    def advisories(self) -> list[str]:
+        """Settings that are valid but outside the range where runs are known to go well, each as
+        one line naming the key (``granpack check`` and ``granpack run`` print them as warnings)."""
+        notes = []
+        h = self.solver.time_step
+        if h > 0.01:
+            notes.append(f"solver.time_step = {h:g} sqrt(d/g) is above 0.01, twice the default 5e-3: the overlaps of "
+                         "impacts and the error of the gaps held linear over a step grow with it")
+        if self.solver.tolerance > 1e-3:
+            notes.append(f"solver.tolerance = {self.solver.tolerance:g} is above 1e-3: the contact forces are then "
+                         "too inexact for the equilibrium criteria to be met")
+        if self.equilibrium.max_time < 30.0:
+            notes.append(f"equilibrium.max_time = {self.equilibrium.max_time:g} sqrt(d/g): piles seldom come to rest "
+                         "before t = 30 (300 isometric pinacoids: about 60), so the run will likely stop at the cap")
+        return notes
+
     @property
     def largest_size(self) -> float:
         """Largest circumscribed diameter over the populations, d."""

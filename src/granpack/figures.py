@@ -388,8 +388,9 @@ def _errorbar(ax: Axes, stats: pd.DataFrame, **style) -> None:
     ax.errorbar(100 * stats["share"], stats["mean"], yerr=stats["std"], capsize=3, **style)
 
 
-def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str) -> Figure | None:
-    """One panel per group of families (size / shape / other) of ``column`` against the share."""
+def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str, before: str | None = None) -> Figure | None:
+    """One panel per group of families (size / shape / other) of ``column`` against the share;
+    with ``before``, that column too, open markers and dashed, for the state before gravity."""
     if column not in runs or runs[column].notna().sum() == 0:
         return None
     groups: dict[str, list] = {}
@@ -401,8 +402,11 @@ def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str) -> F
     fig = Figure(figsize=(5.5 * len(groups), 4.2))
     axes = fig.subplots(1, len(groups), squeeze=False, sharey=True)[0]
     for ax, panel in zip(axes, [p for p in ("size", "shape", "other") if p in groups]):
-        for family in groups[panel]:
-            _errorbar(ax, _series(runs, family, column), marker=_marker(family), label=_label(family))
+        for k, family in enumerate(groups[panel]):
+            _errorbar(ax, _series(runs, family, column), marker=_marker(family), color=f"C{k}", label=_label(family))
+            if before is not None and before in runs and len(_series(runs, family, before)):
+                _errorbar(ax, _series(runs, family, before), marker=_marker(family), color=f"C{k}", linestyle="--",
+                          markerfacecolor="none", label=f"{_label(family)}: initial state")
         ax.set_xlabel(_panel_xlabel(runs, groups[panel]))
         ax.legend()
     axes[0].set_ylabel(ylabel)
@@ -606,7 +610,8 @@ def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = 
     chosen = _chosen(runs, mixtures)
     figures = {
         "solid_fraction": _versus_share(runs, "solid_fraction.bulk", "bulk solid fraction φ", "Solid fraction"),
-        "order": _versus_share(runs, "order.Q00", "nematic order $Q^2_{00}$", "Orientational order"),
+        "order": _versus_share(runs, "order.Q00", "nematic order $Q^2_{00}$",
+                               "Orientational order (dashed: the deposit before gravity)", before="run.initial_order.Q00"),
         "coordination": _coordination_figure(runs),
         "coordination_vs_order": _coordination_vs_order(runs),
         "pair_correlation": _pair_correlation_figure(campaign_dir, chosen),

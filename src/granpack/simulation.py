@@ -154,6 +154,7 @@ class _Counters:
     detection_seconds: float = 0.0
     solver_seconds: float = 0.0
     deposit_seconds: float = 0.0
+    initial_order: dict = field(default_factory=dict)  # Q00, Q22 of the deposit before gravity acts
     wall_seconds: float = 0.0
     cpu_seconds: float = 0.0  # process CPU time of the settling (all threads)
     last_report: dict = field(default_factory=dict)
@@ -266,6 +267,19 @@ def step_reach(state: ParticleState, base: float, time_step: float, substeps: in
         speed = touched
     h_sub = time_step / substeps
     return np.maximum(0.5 * base, _ALERT_MARGIN * (h_sub * speed + 0.5 * time_step * h_sub))
+
+
+def _deposit_order(state: ParticleState) -> dict:
+    """``{"Q00", "Q22"}`` of the deposited grains, gravity not yet applied (the "initial state"
+    of the study's order figure): over every non-spherical grain, nan with none."""
+    from granpack.analysis.order import order_parameters
+    from granpack.rotations import quat_to_matrix
+
+    shaped = ~state.shapes.is_sphere[state.kind]
+    if not shaped.any():
+        return {"Q00": math.nan, "Q22": math.nan}
+    q00, q22, _, _ = order_parameters(quat_to_matrix(state.quaternion[shaped]))
+    return {"Q00": q00, "Q22": q22}
 
 
 def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleState, Mixture]:
@@ -546,7 +560,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
              lines_only=True)
         state, mixture = initial_state(config, progress=mode == "bar")
-        counters = _Counters(deposit_seconds=time.perf_counter() - t0)
+        counters = _Counters(deposit_seconds=time.perf_counter() - t0, initial_order=_deposit_order(state))
         note(f"poured in {counters.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None
     else:
@@ -768,6 +782,7 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "wall_time": c.wall_seconds,
         "cpu_time": c.cpu_seconds,
         "threads": {"numba": thread_count(), "layer": threading_layer()},
+        "initial_order": dict(c.initial_order),
         "timing": {
             "deposit_seconds": c.deposit_seconds,
             "detection_seconds": c.detection_seconds,
