@@ -12,6 +12,8 @@ documentation page of the results from them:
 
 - ``save OUT``: the finished runs of campaign folder ``OUT`` into ``benchmarks/study/``, and the
   checkpoints of its unfinished runs (a kept checkpoint of a run that has since finished is removed);
+  ``--final`` keeps the finished runs' ``final.gsd`` too (a packing to analyse again), ``--kept``
+  another folder of kept runs (``benchmarks/validation/runs/...``);
 - ``restore OUT``: the kept runs into ``OUT``, where ``granpack campaign examples/study.toml
   --out OUT`` then skips the finished ones, resumes the checkpointed ones and runs the others
   (a checkpoint is restored only into a run folder that holds neither a checkpoint nor a result);
@@ -21,7 +23,7 @@ documentation page of the results from them:
 - ``mixtures OUT``: a markdown table, one row per mixture: runs at rest of runs analysed, bulk
   solid fraction (mean ± sample standard deviation over every analysed run: a run stopped at the
   time cap is dense already, its solid fraction moves by less than the seeds' spread), and N, Nc,
-  rattlers, Q00 and Q22 averaged over the runs **at rest** only (a pile still moving has contacts
+  rattlers, Q00 and Q22 averaged over the runs **at rest** only, and the Q00 of the deposit before gravity over every run (a pile still moving has contacts
   that open and close: its coordination is not that of a packing in equilibrium); a mixture
   none of whose runs came to rest has them over all its runs, marked ``(cap)``;
 - ``page [KEPT]``: the documentation page ``docs/study.md`` ("The study campaign: results") from
@@ -30,7 +32,10 @@ documentation page of the results from them:
   the two tables above and the campaign's figures, copied from ``benchmarks/study/figures/`` to
   ``docs/study/figures/`` (mkdocs serves only what is under ``docs/``). The page is generated,
   never edited by hand, and the same kept runs give the same bytes
-  (``tests/test_benchmarks_tables.py`` checks that the committed page is up to date).
+  (``tests/test_benchmarks_tables.py`` checks that the committed page is up to date);
+- ``initial-order OUT``: the order of the deposit before gravity (Q00, Q22) written into the
+  ``summary.json`` of each finished run that lacks it (made by a version that did not record it),
+  the deposit made again from the run's config and seed.
 
 Usage::
 
@@ -147,11 +152,14 @@ _AT_REST_COLUMNS = (("coordination", "N", ".2f"), ("coordination", "Nc", ".2f"),
 
 
 def mixtures(root: Path) -> str:
-    lines = ["| mixture | at rest / runs | bulk phi | N | Nc | rattlers | Q00 | Q22 |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| mixture | at rest / runs | bulk phi | N | Nc | rattlers | Q00 | Q22 | Q00 of the deposit |",
+             "|---|---|---|---|---|---|---|---|---|"]
     by_mixture: dict[str, list[dict]] = {}
+    deposit: dict[str, list] = {}
     for run in _run_folders(root):
         by_mixture.setdefault(run.parent.name, []).append(json.loads((run / "analysis.json").read_text()))
+        summary = json.loads((run / "summary.json").read_text()) if (run / "summary.json").is_file() else {}
+        deposit.setdefault(run.parent.name, []).append((summary.get("initial_order") or {}).get("Q00"))
     for name, runs in by_mixture.items():
         phi = [a["solid_fraction"]["bulk"] for a in runs]
         std = statistics.stdev(phi) if len(phi) > 1 else float("nan")
@@ -159,7 +167,7 @@ def mixtures(root: Path) -> str:
         mark = "" if rest else " (cap)"
         cells = [f"{_f(_mean([a[section][key] for a in rest or runs]), fmt)}{mark}" for section, key, fmt in _AT_REST_COLUMNS]
         lines.append(f"| {name} | {len(rest)} / {len(runs)} | {_f(_mean(phi), '.4f')} ± {_f(std, '.4f')} | "
-                     + " | ".join(cells) + " |")
+                     + " | ".join(cells) + f" | {_f(_mean(deposit[name]), '.3f')} |")
     return "\n".join(lines)
 
 
@@ -344,13 +352,37 @@ Drawn by `granpack figures` over the campaign folder
     return out
 
 
+def initial_order(root: Path) -> int:
+    """Write the ``initial_order`` (Q00, Q22 of the deposit before gravity) into the summary.json
+    of every finished run of ``root`` that has none (runs of a version that did not record it):
+    the deposit is made again from the run's config, seed included, which fixes it bit for bit.
+    Returns the number of summaries written."""
+    from granpack.config import load_config_dict
+    from granpack.io.json import write_json
+    from granpack.simulation import _deposit_order, initial_state
+
+    written = 0
+    for run in _run_folders(root):
+        path = run / "summary.json"
+        summary = json.loads(path.read_text()) if path.is_file() else None
+        if summary is None or "initial_order" in summary:
+            continue
+        config = load_config_dict(json.loads((run / "task.json").read_text())["config"], source=str(run))
+        state, _ = initial_state(config)
+        summary["initial_order"] = _deposit_order(state)
+        write_json(path, summary)
+        written += 1
+    return written
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("action", choices=("save", "restore", "table", "mixtures", "page"))
+    parser.add_argument("action", choices=("save", "restore", "table", "mixtures", "page", "initial-order"))
     parser.add_argument("campaign", type=Path, nargs="?",
                         help="the campaign output folder (page: the kept runs, default the --kept folder)")
     parser.add_argument("--kept", type=Path, default=KEPT,
                         help=f"the folder of kept runs in the repository (default {KEPT.relative_to(KEPT.parents[1])})")
+    parser.add_argument("--final", action="store_true", help="save: keep each finished run's final.gsd too")
     parser.add_argument("--page", type=Path, default=PAGE, help="page: the page to write (default docs/study.md)")
     parser.add_argument("--figures", type=Path, default=PAGE_FIGURES,
                         help="page: the folder its figures are copied to (default docs/study/figures)")
@@ -362,8 +394,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.campaign is None:
         parser.error(f"{args.action}: the campaign output folder is required")
+    if args.action == "initial-order":
+        print(f"recorded the deposit's order in {initial_order(args.campaign)} summaries", file=sys.stderr)
+        return 0
     if args.action == "save":
-        finished = _copy_runs(args.campaign, kept)
+        finished = _copy_files(_run_folders(args.campaign), args.campaign, kept, FILES + (("final.gsd",) if args.final else ()))
         dropped = _drop_stale_checkpoints(kept)
         checkpoints = _copy_checkpoints(args.campaign, kept, replace=True)
         print(f"kept {finished} finished runs and {checkpoints} checkpoints of unfinished runs in {kept} "
