@@ -150,8 +150,8 @@ def time_detection(state: ParticleState, skin: float, steps: int, move: float, r
 
 
 def machine_speed() -> float:
-    """CPU seconds of a plain Python loop of 1e6 additions: VMs differ by factors of 2 from one
-    session to the next, so timings are compared only between runs with similar values."""
+    """CPU seconds of a plain Python loop of 1e6 additions: VMs of the same kind differ in pace by
+    factors of up to 2.5, so timings are compared only between runs with similar values."""
     c0 = time.process_time()
     total = 0
     for k in range(1_000_000):

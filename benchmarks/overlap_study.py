@@ -10,8 +10,8 @@ steps.
 
     python benchmarks/overlap_study.py --time 60 --set solver.overlap_slop=1e-4 --seed 2
 
-Results are tabled in benchmarks/README.md and the module docstring of
-``granpack.nscd.integrator``.
+Results are tabled in benchmarks/README.md; the decisions they informed are in docs/design-notes.md
+and the module docstring of ``granpack.nscd.integrator``.
 """
 
 from __future__ import annotations

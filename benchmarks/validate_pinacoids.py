@@ -1,4 +1,4 @@
-"""Validation of the study's pinacoid mixtures at the study's size (issue 19, part 2), too slow for CI.
+"""Validation of the study's pinacoid mixtures at the study's size, too slow for CI.
 
 Runs ``granpack.simulation.run_packing`` then ``granpack.analysis.report.analyze_run`` on each
 mixture and seed (or, with ``--reuse``, re-analyses the run folders a previous call left), prints

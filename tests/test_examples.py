@@ -1,5 +1,5 @@
 """Every packaged example leaves a bulk region: no run config and no campaign run triggers the
-short-column warning of ``granpack check`` (issue 19), and the pinacoid examples use the cells that
+short-column warning of ``granpack check``, and the pinacoid examples use the cells that
 benchmarks/validate_pinacoids.py plans for them."""
 
 from __future__ import annotations

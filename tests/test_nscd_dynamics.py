@@ -595,7 +595,7 @@ def test_bounded_position_correction_shrinks_every_overlap_of_a_column():
     wall): the projection lifts ball k by (k + 1) 0.01 d. Bounding each ball's translation to
     1e-3 d alone lifts the whole column rigidly, so only the wall contact shrinks; in a pile of
     flat pinacoids that rigid lift fell back at the next step, every step, and the pile never came
-    to rest (benchmarks/README.md). The common factor shrinks every overlap by the same fraction
+    to rest (docs/design-notes.md). The common factor shrinks every overlap by the same fraction
     (1e-3 d over the 8 contacts of the column: 1/80 of each overlap)."""
     n, overlap = 8, 0.01
     start = np.zeros((n, 3))

@@ -6,7 +6,8 @@ machine runs the same code path, its idle threads sleep instead of spinning, and
 finalizer to hang at exit (oneTBB's, which Numba picks first where TBB is installed, spins
 forever once Numba code has run in a second thread). A kernel compiled with ``parallel=True``
 is built twice: the parallel build runs when Numba has more than one thread, a serial build
-otherwise, so that a one-thread run wakes no thread at all.
+otherwise, so that a one-thread run wakes no thread at all; a kernel called on little work (fewer
+rows than :data:`MIN_PARALLEL_ROWS`, or a caller's own bound) runs its serial build too.
 """
 
 from __future__ import annotations
@@ -16,13 +17,19 @@ import types
 
 #: the threading layer granpack asks for where the environment names none
 THREADING_LAYER = "workqueue"
+#: fewest rows for which a kernel runs its parallel build: below, a launch (tens of microseconds:
+#: waking the workers and waiting for them) costs more than the second thread saves. Bodies cost
+#: about ten times as much per row as contact points, hence two bounds.
+MIN_PARALLEL_ROWS = 1000
+MIN_PARALLEL_POINTS = 10_000
 
 os.environ.setdefault("NUMBA_THREADING_LAYER", THREADING_LAYER)
 os.environ.setdefault("GOMP_SPINCOUNT", "10000")  # OpenMP, if asked for: idle threads spin briefly
 
 import numba  # noqa: E402  (after the environment settings above)
 
-__all__ = ["THREADING_LAYER", "ThreadedKernel", "jit", "prange", "thread_count", "threading_layer"]
+__all__ = ["MIN_PARALLEL_POINTS", "MIN_PARALLEL_ROWS", "THREADING_LAYER", "ThreadedKernel", "jit", "prange",
+           "thread_count", "threading_layer"]
 
 prange = numba.prange
 
@@ -47,6 +54,11 @@ class ThreadedKernel:
 
     def __call__(self, *args):
         return (self.parallel if thread_count() > 1 else self.serial)(*args)
+
+    def sized(self, rows: int, least: int = MIN_PARALLEL_ROWS):
+        """The build for ``rows`` rows of work: the parallel one from ``least`` rows on (and
+        several threads), the serial one below; the two give the same bits."""
+        return self.parallel if rows >= least and thread_count() > 1 else self.serial
 
 
 def jit(func=None, *, parallel: bool = False, fastmath: bool = False, inline: str = "never"):

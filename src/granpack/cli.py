@@ -100,7 +100,7 @@ def _note(message: str) -> None:
 
 
 #: solid fraction at which `granpack check` expects a settled pile of one grain size to stand
-#: (measured 0.61-0.67 for the pinacoid and sphere piles, benchmarks/README.md)
+#: (measured 0.61-0.67 for the pinacoid and sphere piles, docs/design-notes.md)
 _PHI_ONE_SIZE = 0.6
 #: the same for a mix of sizes (measured 0.70-0.74 for mixes of sizes 1 and 1/3)
 _PHI_MIXED_SIZES = 0.72

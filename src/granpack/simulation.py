@@ -724,7 +724,7 @@ def shake(state: ParticleState, speed: float, rng: np.random.Generator) -> None:
 
     Why: a frictionless pile near rest holds grains by contacts that carry almost no force; such a
     grain leaves its contact and slides to the next one tens of sqrt(d/g) later, setting off a burst
-    of rearrangements (benchmarks/README.md, ninth session). A small kick makes those grains leave
+    of rearrangements (docs/design-notes.md, Settling to rest). A small kick makes those grains leave
     at once, while the grains held firmly return to rest within a few sqrt(d/g) under the end game's
     damping.
     """

@@ -15,8 +15,9 @@ u, v, w) and any orthonormal ``X, Y = Z x X`` spanning the plane normal to ``Z``
     Q^2_{22}(\\varphi) = \\tfrac13 \\left[X Q^{xx} X + Y Q^{yy} Y - X Q^{yy} X - Y Q^{xx} Y\\right]
                       = A \\cos 2\\varphi + B \\sin 2\\varphi, \\qquad Q^2_{22} = \\sqrt{A^2 + B^2},
 
-the maximum over the angle of ``X`` in that plane. Convention (open question Q2): prefactor 1/3 on
-the tensor form, so perfect biaxial order gives :math:`Q^2_{00} = Q^2_{22} = 1`.
+the maximum over the angle of ``X`` in that plane. Convention: prefactor 1/3 on the tensor form, so
+perfect biaxial order gives :math:`Q^2_{00} = Q^2_{22} = 1` (the average form with prefactor 1/4 found
+in part of the literature is half of it).
 
 Finite-size baseline: for ``n`` uniformly random orientations both figures are positive (about
 0.019 and 0.007 for n = 3000); :func:`isotropic_baseline` gives their mean and standard deviation for

@@ -120,7 +120,7 @@ class Detector:
 
     Args:
         skin: Verlet skin, d; 0 (default) searches the grid at every call. A skin pays when
-            grains move little per step (settling, static packings); see benchmarks/README.md.
+            grains move little per step (settling, static packings); see docs/design-notes.md.
         eps_f: feature band, rank tolerance and axis hysteresis, d; default ``1e-3 d_min``
             with ``d_min`` the smallest grain size of the shape table.
         threads: narrow-phase threads; default ``thread_count()`` (the CPUs, or
@@ -188,7 +188,7 @@ class Detector:
         radius = shapes.radius[state.kind]
         if self.verlet.update(state.position, radius, box.lx, box.ly, alert) or self._pair_axis is None:
             self._pair_axis = np.full(len(self.verlet.pair_j), -1, np.int64)
-        geo = world_geometry(state.position, state.quaternion, state.kind, shapes.vertex_start, shapes.vertices,
+        geo = world_geometry.sized(state.n)(state.position, state.quaternion, state.kind, shapes.vertex_start, shapes.vertices,
                              shapes.face_start, shapes.face_normals, shapes.axis_start, shapes.face_axes,
                              shapes.direction_start, shapes.edge_directions, self.threads)
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min

@@ -231,7 +231,7 @@ def predict(state: ParticleState, params: StepParameters) -> Prediction:
     inv_iw = np.empty((n + 1, 6))
     v_start = np.empty((n + 1, 6))
     v_free = np.empty((n + 1, 6))
-    predict_kernel(
+    predict_kernel.sized(n)(
         state.position, state.quaternion, state.velocity, state.omega, np.ascontiguousarray(state.inertia),
         float(params.time_step), float(params.theta), x_tt, q_tt, rot_tt, inv_iw, v_start, v_free, thread_count(),
     )
@@ -300,7 +300,7 @@ def advance(
         if gap_end.min() < -params.overlap_slop:
             displacement, correction_iterations = _position_correction(problem, gap_end, params)
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
-    update_kernel(
+    update_kernel.sized(state.n)(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
         state.position, state.quaternion, state.velocity, state.omega, thread_count(),
     )

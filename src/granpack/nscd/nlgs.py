@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from granpack._numba import jit, prange, thread_count
+from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
 from granpack.nscd.problem import (
     AIN,
     AIS,
@@ -115,6 +115,7 @@ class SolverInfo:
     iterations: int
     error: float
     converged: bool
+
 
 
 @jit
@@ -532,14 +533,18 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
                                               bool(options.nncg))
         else:
             order, bounds = groups
-            body, data, offset, r_sorted = _gather_points(order, problem.body, problem.normal_data, problem.offset, rn)
+            gather = _gather_points.sized(len(order), MIN_PARALLEL_POINTS)
+            body, data, offset, r_sorted = gather(order, problem.body, problem.normal_data, problem.offset, rn)
+            sweeps = _solve_frictionless_two_parts.sized(problem.n_points, MIN_PARALLEL_POINTS)
             threads = thread_count()
-            numba.set_num_threads(min(2, threads))  # the other threads would only join the barriers
+            narrowed = sweeps is _solve_frictionless_two_parts.parallel and threads > 2
+            if narrowed:
+                numba.set_num_threads(2)  # the other threads would only join the barriers
             try:
-                it, err, ok = _solve_frictionless_two_parts(body, data, offset, r_sorted, v, bounds, tol, max_it, every,
-                                                            bool(options.nncg))
+                it, err, ok = sweeps(body, data, offset, r_sorted, v, bounds, tol, max_it, every, bool(options.nncg))
             finally:
-                numba.set_num_threads(threads)
+                if narrowed:
+                    numba.set_num_threads(threads)
             rn[order] = r_sorted
         impulse[:, 0] = rn
     return impulse, SolverInfo(iterations=int(it), error=float(err), converged=bool(ok))

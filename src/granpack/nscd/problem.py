@@ -53,7 +53,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from granpack._numba import jit, prange, thread_count
+from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["ContactProblem", "assemble", "tangent_frame", "NORMAL_WIDTH", "FRICTION_WIDTH"]
@@ -336,7 +336,8 @@ class ContactProblem:
     def local_velocity(self, velocity: np.ndarray) -> np.ndarray:
         """Local relative velocities ``(u_n, u_t, u_s)`` ``(P, 3)`` of body velocities ``(N + 1, 6)``."""
         out = np.empty((self.n_points, 3))
-        _local_velocity_kernel(self.body, self.normal_data, self.tangent, self.lever_i, self.lever_j, velocity, out)
+        kernel = _local_velocity_kernel.sized(self.n_points, MIN_PARALLEL_POINTS)
+        kernel(self.body, self.normal_data, self.tangent, self.lever_i, self.lever_j, velocity, out)
         return out
 
     def world_impulse(self, impulse: np.ndarray) -> np.ndarray:
@@ -454,7 +455,7 @@ def assemble(
     lever_i = np.empty((p, 3))
     lever_j = np.empty((p, 3))
     fdata = np.empty((p if with_friction else 0, FRICTION_WIDTH))
-    _assemble_parallel(
+    _assemble_parallel.sized(p, MIN_PARALLEL_POINTS)(
         thread_count(),
         np.ascontiguousarray(contacts.body_i, dtype=np.int64),
         np.ascontiguousarray(contacts.body_j, dtype=np.int64),

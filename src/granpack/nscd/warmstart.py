@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from granpack._numba import jit, prange, thread_count
+from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
 from granpack.contact.contacts import ContactSet
 
 __all__ = ["warm_impulses"]
@@ -218,7 +218,7 @@ def warm_impulses(
     out = np.zeros((p, 3))
     if previous is None or previous.impulse is None or previous.n_points == 0 or p == 0:
         return out, 0
-    matched = _warm_kernel(
+    matched = _warm_kernel.sized(p, MIN_PARALLEL_POINTS)(
         np.ascontiguousarray(previous.body_i, dtype=np.int64),
         np.ascontiguousarray(previous.body_j, dtype=np.int64),
         np.ascontiguousarray(previous.point_start, dtype=np.int64),
