@@ -311,10 +311,12 @@ def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
 
 
 def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False) -> dict:
+    from granpack.mixture import Mixture
     from granpack.simulation import run_packing
 
-    try:
-        summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True)
+    try:  # the warnings of `check`, before hours of work
+        summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True,
+                              warnings=_warnings_of(config, Mixture.from_config(config)))
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
             raise
@@ -371,15 +373,10 @@ def run(
     """
     from granpack.config import load_config
 
-    from granpack.mixture import Mixture
-
     cfg = load_config(config)
     if seed is not None:
         cfg = cfg.with_seed(seed)
     _protect_input(config, out, cfg.to_toml())
-    if not resume:  # before hours of work, not only in `check`
-        for warning in _warnings_of(cfg, Mixture.from_config(cfg)):
-            _note(f"warning: {warning}")
     again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
     summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output)
     if json_output:

@@ -76,6 +76,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -501,7 +502,7 @@ def _claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: b
 
 
 def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, overwrite: bool = False,
-                progress: bool | str = True) -> dict:
+                progress: bool | str = True, warnings: Sequence[str] = ()) -> dict:
     """Pour and settle one packing; write its files; return its summary.
 
     No work is lost without a word: a folder that holds a run (any of :data:`RUN_FILES`) is
@@ -522,6 +523,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             to ``out_dir/progress.log`` instead (a campaign's runs, whose stderr nobody reads);
             ``True``: the bars if stderr is a terminal, else the lines; ``False``: nothing. Notes
             (resuming, overwriting) go to stderr unless ``False`` or ``"log"``.
+        warnings: lines written as ``warning: ...`` notes once the folder is accepted, before a
+            new run pours (what ``granpack check`` warns of; none on a resume).
 
     Returns:
         The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
@@ -556,6 +559,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     if resumed is None:
         (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
         (out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
+        for warning in warnings:
+            note(f"warning: {warning}")
         t0 = time.perf_counter()
         note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
              lines_only=True)
