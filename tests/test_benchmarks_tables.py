@@ -9,15 +9,20 @@ from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "validate_pinacoids.py"
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _script(name: str):
+    """The module of ``benchmarks/NAME.py``."""
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="module")
 def vp():
-    spec = importlib.util.spec_from_file_location("validate_pinacoids", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return _script("validate_pinacoids")
 
 
 def _analysis(seed: int, phi, Nc, *, baseline=True, valid=True, force=5e-4) -> dict:
@@ -86,15 +91,9 @@ def test_plan_cell_gives_a_bulk(vp):
     assert vp.plan_cell(vp.load_populations("isometric"), 3000, 8.0, 7.0, 3.0) == (8.0, 3000, None)
 
 
-STUDY_RUNS = Path(__file__).resolve().parents[1] / "benchmarks" / "study_runs.py"
-
-
 @pytest.fixture(scope="module")
 def study_runs():
-    spec = importlib.util.spec_from_file_location("study_runs", STUDY_RUNS)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return _script("study_runs")
 
 
 def test_study_page_is_up_to_date(study_runs, tmp_path):
@@ -111,3 +110,32 @@ def test_study_page_is_up_to_date(study_runs, tmp_path):
     # the same kept runs give the same bytes
     again = study_runs.page(study_runs.KEPT, tmp_path / "again.md", tmp_path / "study" / "figures")
     assert again.read_bytes() == out.read_bytes()
+
+
+@pytest.fixture(scope="module")
+def sensitivity():
+    return _script("sensitivity")
+
+
+def test_the_sensitivity_campaigns_vary_one_factor_against_the_study(sensitivity, tmp_path, monkeypatch):
+    """The committed campaign files are what `sensitivity.py configs` writes from examples/study.toml,
+    and each varied mixture differs from the study's in its factor's keys alone."""
+    import tomllib
+
+    committed = {p.name: p.read_text() for p in sensitivity.CONFIGS.glob("*.toml")}
+    monkeypatch.setattr(sensitivity, "CONFIGS", tmp_path)
+    assert {p.name: p.read_text() for p in sensitivity.write_configs()} == committed
+    study = {m["name"]: m for m in tomllib.loads(sensitivity.STUDY.read_text())["mixtures"]}
+    varied = {m["name"]: m for m in tomllib.loads(committed["sensitivity.toml"])["mixtures"]}
+    lmgc = varied["regime-lmgc_pinacoids-small-30"]
+    assert lmgc["solver"] == sensitivity.LMGC_REGIME and lmgc["populations"] == study["pinacoids-small-30"]["populations"]
+    assert varied["cell-study_flat-elongated-100"]["lateral_size"] == 8.0
+    assert varied["width-x3_pinacoids-small-30"]["n_particles"] == 9000
+    assert varied["width-x3_pinacoids-small-30"]["lateral_size"] == pytest.approx(3.0 * math.sqrt(3.0), abs=1e-4)
+
+
+def test_the_bed_solid_fraction_leaves_a_skin_at_the_floor_and_the_surface(sensitivity):
+    z = [0.05 + 0.1 * k for k in range(60)]  # a bed 5 d high: 0.2 in the first 0.5 d, 0.6 above, empty from 5 d
+    phi = [0.2 if zk < 0.5 else 0.6 if zk < 5.0 else 0.0 for zk in z]
+    assert sensitivity._bed_phi(z, phi) == pytest.approx(0.6)
+    assert math.isnan(sensitivity._bed_phi(z, [0.0] * len(z)))
