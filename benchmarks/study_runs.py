@@ -359,7 +359,7 @@ def initial_order(root: Path) -> int:
     Returns the number of summaries written."""
     from granpack.config import load_config_dict
     from granpack.io.json import write_json
-    from granpack.simulation import _deposit_order, initial_state
+    from granpack.simulation import deposit_order, initial_state
 
     written = 0
     for run in _run_folders(root):
@@ -369,7 +369,7 @@ def initial_order(root: Path) -> int:
             continue
         config = load_config_dict(json.loads((run / "task.json").read_text())["config"], source=str(run))
         state, _ = initial_state(config)
-        summary["initial_order"] = _deposit_order(state)
+        summary["initial_order"] = deposit_order(state)
         write_json(path, summary)
         written += 1
     return written

@@ -583,7 +583,7 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
 
     from rich.console import Console
 
-    from granpack.simulation import _Lines, _SettlingProgress
+    from granpack.progress import Lines as _Lines, SettlingProgress as _SettlingProgress
 
     report = SimpleNamespace(force_ok=True, torque_ok=False, energy_ok=False, wall_ok=True, max_net_force=1.2e-2,
                              kinetic_energy=3e-5, max_net_torque=1e-3, wall_force_over_weight=0.9998)
@@ -598,11 +598,12 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
 
 
 def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
+    import granpack.progress as progress
     import granpack.simulation as simulation
 
     from granpack.config import load_config
 
-    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    monkeypatch.setattr(progress, "PROGRESS_LINE_SECONDS", 0.0)
     path = tmp_path / "tiny.toml"
     path.write_text(TINY_RUN)
     simulation.run_packing(load_config(path), tmp_path / "r", progress="lines")
@@ -617,11 +618,12 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
 
 def test_progress_lines_come_between_checks_far_apart(tmp_path, capsys, monkeypatch):
     """A check interval longer than the line interval: lines still come, not only at checks."""
+    import granpack.progress as progress
     import granpack.simulation as simulation
 
     from granpack.config import load_config
 
-    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    monkeypatch.setattr(progress, "PROGRESS_LINE_SECONDS", 0.0)
     path = tmp_path / "tiny.toml"
     path.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 1.0\ncheck_interval = 0.5"))
     simulation.run_packing(load_config(path), tmp_path / "r", progress="lines")
@@ -632,11 +634,12 @@ def test_progress_lines_come_between_checks_far_apart(tmp_path, capsys, monkeypa
 def test_progress_log_takes_the_lines_and_notes_and_overwrite_removes_it(tmp_path, capsys, monkeypatch):
     """``progress="log"`` (a campaign's runs): nothing on stderr, the notes and progress lines
     appended to progress.log, the last one saying how the run ended; --overwrite removes it."""
+    import granpack.progress as progress
     import granpack.simulation as simulation
 
     from granpack.config import load_config
 
-    monkeypatch.setattr(simulation, "_PROGRESS_LINE_SECONDS", 0.0)
+    monkeypatch.setattr(progress, "PROGRESS_LINE_SECONDS", 0.0)
     path = tmp_path / "tiny.toml"
     path.write_text(TINY_RUN)
     out = tmp_path / "r"

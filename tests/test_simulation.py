@@ -562,10 +562,10 @@ def test_the_deposit_order_is_recorded_before_gravity_acts(tmp_path):
                                                 "volume_fraction": 1.0}]})
     state, _ = simulation.initial_state(config)
     mean, std, _, _ = isotropic_baseline(state.n)
-    assert abs(simulation._deposit_order(state)["Q00"] - mean) < 5 * std
+    assert abs(simulation.deposit_order(state)["Q00"] - mean) < 5 * std
     aligned = replace(state, quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (state.n, 1)))
-    assert simulation._deposit_order(aligned) == pytest.approx({"Q00": 1.0, "Q22": 1.0})
+    assert simulation.deposit_order(aligned) == pytest.approx({"Q00": 1.0, "Q22": 1.0})
     summary = run_packing(config, tmp_path / "run", progress=False)
-    assert summary["initial_order"] == pytest.approx(simulation._deposit_order(state))
+    assert summary["initial_order"] == pytest.approx(simulation.deposit_order(state))
     spheres = run_packing(sphere_config(n=20, max_time=0.05), tmp_path / "spheres", progress=False)
     assert math.isnan(spheres["initial_order"]["Q00"])

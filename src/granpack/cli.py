@@ -297,14 +297,14 @@ def _interrupted(exc: BaseException) -> bool:
 
 def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
     """The one-line message and exit status 130 of a run stopped by Ctrl-C."""
-    from granpack.simulation import CHECKPOINT_FILE, _checkpoint_when
+    from granpack.io.run_folder import CHECKPOINT_FILE, checkpoint_when
 
     if isinstance(exc, RunInterrupted):
         return _Stop(f"interrupted at t = {exc.time:.6g} sqrt(d/g) (step {exc.step}), checkpoint written to "
                      f"{exc.checkpoint}; continue with: {again} --resume", 130)
     checkpoint = out / CHECKPOINT_FILE
     if checkpoint.is_file():
-        return _Stop(f"interrupted; the last checkpoint{_checkpoint_when(checkpoint)} is kept in {checkpoint}; "
+        return _Stop(f"interrupted; the last checkpoint{checkpoint_when(checkpoint)} is kept in {checkpoint}; "
                      f"continue with: {again} --resume", 130)
     return _Stop("interrupted before the first checkpoint: there is nothing for --resume to continue from; "
                  "run the same command again to start over", 130)
@@ -343,7 +343,7 @@ def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: 
 def _protect_input(config_path: Path, out: Path, resolved_text: str) -> None:
     """Refuse a run whose resolved config would replace the input file itself with other text
     (``granpack run config.toml --out .``)."""
-    from granpack.simulation import CONFIG_FILE
+    from granpack.io.run_folder import CONFIG_FILE
 
     target = out / CONFIG_FILE
     try:

@@ -72,9 +72,6 @@ from __future__ import annotations
 
 import math
 import os
-import signal
-import sys
-import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -88,12 +85,23 @@ from granpack.contact import ContactSet, Detector
 from granpack.deposit import deposit
 from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
 from granpack.errors import InputError, RunInterrupted
-from granpack.io.atomic import output_folder, write_text_atomic
+from granpack.io.atomic import write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
+from granpack.io.run_folder import (
+    CHECKPOINT_FILE,
+    CONFIG_FILE,
+    FINAL_FILE,
+    PROGRESS_FILE,
+    SUMMARY_FILE,
+    TIMELINE_FILE,
+    TRAJECTORY_FILE,
+    claim_folder,
+)
 from granpack.mixture import Mixture
 from granpack.nscd import StepParameters, advance, kinetic_energy, potential_energy, predict, required_alert
 from granpack.packing import Packing
+from granpack.progress import Interrupt, Lines, Notes, SettlingProgress, progress_mode
 from granpack.rotations import random_quaternions
 from granpack.state import ParticleState
 
@@ -103,14 +111,6 @@ __all__ = ["run_packing", "initial_state", "step_parameters", "criteria_of", "st
 
 STATUS_AT_REST = "equilibrium"
 STATUS_NOT_AT_REST = "not at rest"
-CONFIG_FILE = "config.toml"
-CHECKPOINT_FILE = "checkpoint.gsd"
-FINAL_FILE = "final.gsd"
-SUMMARY_FILE = "summary.json"
-TRAJECTORY_FILE = "trajectory.gsd"
-TIMELINE_FILE = "timeline.csv"
-#: the progress lines and notes of a run with ``progress="log"`` (a campaign's runs), appended
-PROGRESS_FILE = "progress.log"
 #: columns of ``timeline.csv``, one row per equilibrium check; counts and sums over the interval
 #: since the previous check, figures of the equilibrium test at the check
 TIMELINE_COLUMNS = (
@@ -270,7 +270,7 @@ def step_reach(state: ParticleState, base: float, time_step: float, substeps: in
     return np.maximum(0.5 * base, _ALERT_MARGIN * (h_sub * speed + 0.5 * time_step * h_sub))
 
 
-def _deposit_order(state: ParticleState) -> dict:
+def deposit_order(state: ParticleState) -> dict:
     """``{"Q00", "Q22"}`` of the deposited grains, gravity not yet applied (the "initial state"
     of the study's order figure): over every non-spherical grain, nan with none."""
     from granpack.analysis.order import order_parameters
@@ -346,161 +346,6 @@ def _current_layout(row: list) -> list:
     return [*row[:_POTENTIAL_COLUMN], math.nan, *row[_POTENTIAL_COLUMN:], math.nan]
 
 
-#: files of a run folder that make it "hold a run" (see :func:`run_packing`): the run's own
-#: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
-RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, "analysis.json",
-             "packing.png")
-#: files that make a folder a campaign's (``granpack campaign`` writes them): no run goes there
-CAMPAIGN_FILES = ("campaign.toml", "runs.csv", "summary.csv")
-#: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
-#: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
-RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
-
-
-def _progress_mode(progress: bool | str) -> str:
-    """``"bar"``, ``"lines"``, ``"log"`` or ``"off"`` for the ``progress`` argument of :func:`run_packing`."""
-    if progress is True:
-        isatty = getattr(sys.stderr, "isatty", None)
-        return "bar" if isatty is not None and isatty() else "lines"
-    if progress is False or progress is None:
-        return "off"
-    if progress in ("bar", "lines", "log", "off"):
-        return str(progress)
-    raise ValueError(f"progress must be True, False, 'bar', 'lines', 'log' or 'off' (got {progress!r})")
-
-
-class _Lines:
-    """Where a run's one-line messages go: stderr, or appended to ``log`` (a file opened and
-    closed per line, so that a reader sees each line at once and an interrupted run leaves a
-    whole file)."""
-
-    def __init__(self, log: Path | None = None):
-        self.log = log
-
-    def __call__(self, line: str) -> None:
-        if self.log is None:
-            print(line, file=sys.stderr, flush=True)
-        else:
-            with open(self.log, "a", encoding="utf-8") as f:
-                f.write(line + "\n")
-
-
-class _Notes:
-    """One-line notes (resuming, overwriting; the pour in ``"lines"`` and ``"log"`` modes); none when silent."""
-
-    def __init__(self, mode: str, write: _Lines):
-        self.mode = mode
-        self.write = write
-
-    def __call__(self, message: str, lines_only: bool = False) -> None:
-        if self.mode == "off" or (lines_only and self.mode not in ("lines", "log")):
-            return
-        self.write(message)
-
-
-def _is_resolved_config(path: Path, config_text: str) -> bool:
-    """Whether ``path`` is a resolved config as granpack writes it (this run's or another's, of
-    this version or an older one: it starts with the header line of :meth:`RunConfig.to_toml`)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError):
-        return False
-    header = config_text.partition("\n")[0]
-    if text == config_text or (header.startswith("#") and text.startswith(header + "\n")):
-        return True
-    from granpack.config import load_config
-
-    try:
-        return load_config(path).to_toml() == text
-    except InputError:
-        return False
-
-
-def _checkpoint_when(path: Path) -> str:
-    """`` at t = ... (step ...)`` of a checkpoint, or nothing if it cannot be read."""
-    try:
-        meta = read_packing(path).metadata
-        return f" at t = {float(meta['time']):.6g} sqrt(d/g) (step {int(meta['step'])})"
-    except (InputError, KeyError, TypeError, ValueError, OSError):
-        return ""
-
-
-def _clear_run(out_dir: Path) -> list[str]:
-    """Remove the run in ``out_dir`` (:data:`RUN_FILES`, granpack's files in :data:`RUN_FOLDERS`);
-    a sub-folder goes too when nothing else is left in it. Returns what was removed."""
-    removed = []
-    for name in RUN_FILES:
-        if (out_dir / name).is_file():
-            (out_dir / name).unlink()
-            removed.append(name)
-    for folder, suffixes in RUN_FOLDERS.items():
-        path = out_dir / folder
-        if not path.is_dir():
-            continue
-        ours = [p for p in path.iterdir() if p.is_file() and p.suffix in suffixes]
-        for p in ours:
-            p.unlink()
-        if ours:
-            removed.append(f"{folder}/")
-        if not any(path.iterdir()):
-            path.rmdir()
-    return removed
-
-
-def _claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bool, note: _Notes) -> bool:
-    """Check ``out_dir`` for :func:`run_packing` and create it; clear it with ``overwrite``.
-
-    Returns:
-        True if ``resume`` finds a finished run of this config (returned as it is).
-
-    Raises:
-        InputError: see :func:`run_packing`.
-    """
-    if resume and overwrite:
-        raise InputError("--resume and --overwrite exclude each other: continue the run in the folder, or replace it")
-    campaign = [name for name in CAMPAIGN_FILES if (out_dir / name).is_file()]
-    if campaign:
-        raise InputError(f"{out_dir}: is a campaign's folder ({', '.join(campaign)}); a run goes into a folder of its own: "
-                         "choose another --out folder")
-    output_folder(out_dir)
-    present = [name for name in RUN_FILES if (out_dir / name).is_file()]
-    config_path = out_dir / CONFIG_FILE
-    if config_path.exists() and not present and not _is_resolved_config(config_path, config_text):
-        raise InputError(f"{config_path}: not a granpack run's resolved config (your own file?) and the run writes "
-                         "its resolved config there; choose another --out folder")
-    finished = (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file()
-    checkpoint = out_dir / CHECKPOINT_FILE
-    replace_hint = "--overwrite replaces it (its analysis, figures and exports go too)"
-    if resume:
-        if finished:
-            if config_path.is_file() and config_path.read_text(encoding="utf-8") == config_text:
-                note(f"{out_dir} holds a finished run of this config: nothing to resume, its summary stands")
-                return True
-            raise InputError(f"{out_dir}: holds a finished run of another config ({config_path}); nothing to "
-                             f"--resume: {replace_hint}, or choose another --out folder")
-        if checkpoint.is_file():
-            return False
-        if present:
-            raise InputError(f"{out_dir}: no {CHECKPOINT_FILE} to --resume from, but the folder holds "
-                             f"{', '.join(present)}: {replace_hint}, or choose another --out folder")
-        note(f"no {CHECKPOINT_FILE} in {out_dir}: nothing to resume, starting afresh")
-        return False
-    if present and not overwrite:
-        if finished:
-            what = "a finished run (final.gsd, summary.json): --resume returns it as it is, " + replace_hint
-        elif checkpoint.is_file():
-            what = (f"an unfinished run (its checkpoint{_checkpoint_when(checkpoint)}): --resume continues it, "
-                    + replace_hint)
-        else:
-            what = f"the outputs of a run ({', '.join(present)}): {replace_hint} (--resume needs a checkpoint)"
-        raise InputError(f"{out_dir}: holds {what}")
-    if overwrite:
-        removed = _clear_run(out_dir)
-        if removed:
-            note(f"--overwrite: removed {', '.join(removed)} from {out_dir}")
-    return False
-
-
 def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, overwrite: bool = False,
                 progress: bool | str = True, warnings: Sequence[str] = ()) -> dict:
     """Pour and settle one packing; write its files; return its summary.
@@ -544,11 +389,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             no checkpoint yet).
     """
     out_dir = Path(out_dir)
-    mode = _progress_mode(progress)
-    write = _Lines(out_dir / PROGRESS_FILE if mode == "log" else None)
-    note = _Notes(mode, write)
+    mode = progress_mode(progress)
+    write = Lines(out_dir / PROGRESS_FILE if mode == "log" else None)
+    note = Notes(mode, write)
     config_text = config.to_toml()
-    if _claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note):
+    if claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note):
         return read_json(out_dir / SUMMARY_FILE)
     wall_start = time.perf_counter()
     mixture = Mixture.from_config(config)
@@ -565,7 +410,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
              lines_only=True)
         state, mixture = initial_state(config, progress=mode == "bar")
-        counters = _Counters(deposit_seconds=time.perf_counter() - t0, initial_order=_deposit_order(state))
+        counters = _Counters(deposit_seconds=time.perf_counter() - t0, initial_order=deposit_order(state))
         note(f"poured in {counters.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None
     else:
@@ -601,8 +446,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
     step_h = h
 
-    bar = _SettlingProgress(mode, eq.max_time, h, write)
-    interrupt = _Interrupt()
+    bar = SettlingProgress(mode, eq.max_time, h, write)
+    interrupt = Interrupt()
     with bar, interrupt:
         while counters.step < n_steps_max:
             alert, substeps = step_alert(state, params.alert, h, ceiling, config.solver.max_rotation)
@@ -819,124 +664,4 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
     }
 
 
-#: wall-clock seconds between two progress lines (``progress="lines"`` or ``"log"``)
-_PROGRESS_LINE_SECONDS = 30.0
 
-
-def _criteria_met(report: EquilibriumReport) -> str:
-    met = [name for name, ok in (("force", report.force_ok), ("torque", report.torque_ok),
-                                 ("energy", report.energy_ok), ("wall", report.wall_ok)) if ok]
-    return " ".join(met) if met else "none"
-
-
-class _SettlingProgress:
-    """Progress of the settling on stderr, updated at each equilibrium check.
-
-    ``"bar"``: a rich progress bar; the simulated time comes first and stays on an 80-column
-    terminal, the figures after the bar are cut to the width left. ``"lines"``: one line every
-    :data:`_PROGRESS_LINE_SECONDS` of wall time (the first at the first check): simulated time,
-    step, steps per second, total kinetic energy, largest net force, contacts, largest overlap,
-    criteria met, written by ``write``; a line falling due between two checks (a long
-    ``check_interval``) gives the figures of the last check and its time; ``"log"``: the same.
-    ``"off"``: nothing.
-    """
-
-    def __init__(self, mode: str, max_time: float, time_step: float, write: _Lines):
-        self.mode = mode
-        self.write = write
-        self.max_time = max_time
-        self.time_step = time_step
-        self._bar = None
-        self._task = None
-        self._last: tuple[float, float] | None = None  # (wall clock, simulated time) of the last line
-        self._checked: tuple | None = None  # the last check's figures and its simulated time
-
-    def __enter__(self):
-        if self.mode == "bar":
-            from rich.console import Console
-            from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-            from rich.table import Column
-
-            self._bar = Progress(
-                TextColumn("settling t = {task.completed:.2f}/{task.total:g}", table_column=Column(no_wrap=True)),
-                BarColumn(bar_width=12),
-                TimeElapsedColumn(),
-                TextColumn("{task.fields[info]}", table_column=Column(no_wrap=True, overflow="ellipsis", ratio=1)),
-                console=Console(stderr=True),
-                expand=True,
-            )
-            self._bar.__enter__()
-            self._task = self._bar.add_task("settling", total=self.max_time, info="")
-        return self
-
-    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int,
-               overlap: float) -> None:
-        if self.mode == "bar" and self._bar is not None:
-            flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
-                                                                  ("E", report.energy_ok), ("W", report.wall_ok)))
-            info = (f"[{flags}] {passes}/{window}  |F| {report.max_net_force:.1e}  E {report.kinetic_energy:.1e}  "
-                    f"Ek {ek:.2e}  contacts {n_contacts}  |T| {report.max_net_torque:.1e}  "
-                    f"W {report.wall_force_over_weight:.4f}  overlap {overlap:.1e}")
-            self._bar.update(self._task, completed=min(t, self.max_time), info=info)
-        elif self.mode in ("lines", "log"):
-            self._checked = (ek, n_contacts, report, passes, window, overlap, t)
-            self._line(t, time.perf_counter())
-
-    def tick(self, t: float) -> None:
-        """After each step: a line in ``"lines"`` / ``"log"`` mode when one is due since the last."""
-        if self._checked is None or self.mode not in ("lines", "log"):
-            return
-        now = time.perf_counter()
-        if now - self._last[0] >= _PROGRESS_LINE_SECONDS:
-            self._line(t, now)
-
-    def _line(self, t: float, now: float) -> None:
-        if self._last is not None and now - self._last[0] < _PROGRESS_LINE_SECONDS:
-            return
-        ek, n_contacts, report, passes, window, overlap, t_check = self._checked
-        rate = ""
-        if self._last is not None and now > self._last[0]:
-            rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
-        self._last = (now, t)
-        when = "" if t_check == t else f" (at the last check, t = {t_check:.2f})"
-        self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
-                   f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
-                   f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
-                   f"criteria met: {_criteria_met(report)} ({passes}/{window} checks){when}")
-
-    def __exit__(self, *exc):
-        if self._bar is not None:
-            self._bar.__exit__(*exc)
-        return False
-
-
-class _Interrupt:
-    """Ctrl-C while settling: SIGINT sets :attr:`requested`, which the loop reads once per step
-    (it then writes its checkpoint and raises :class:`~granpack.errors.RunInterrupted`); a second
-    Ctrl-C raises KeyboardInterrupt at once.
-
-    A flag rather than an exception because SIGINT often lands inside a Numba kernel, where an
-    exception surfaces as ``SystemError: CPUDispatcher(...) returned a result with an exception
-    set`` with the state half-updated. The handler is installed only in the main thread and only
-    over Python's default one (a host that handles SIGINT itself keeps its handler).
-    """
-
-    def __init__(self):
-        self.requested = False
-        self._previous = None
-
-    def _handle(self, signum, frame) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
-        return False

@@ -282,7 +282,7 @@ def status_line(out_dir: Path, run: RunSpec, since: float | None = None) -> str 
     """``running <mixture>/seed-<s>: <the last line of its progress.log>``, or None before the
     run has written one (a run still pouring its first grains) or, with ``since`` (seconds since
     the epoch), one since then (a task waiting for a worker, whose log is an earlier call's)."""
-    from granpack.simulation import PROGRESS_FILE
+    from granpack.io.run_folder import PROGRESS_FILE
 
     path = Path(out_dir) / run.folder / PROGRESS_FILE
     try:
@@ -397,7 +397,7 @@ def changed_runs(out_dir: Path, runs: Iterable[RunSpec]) -> list[RunSpec]:
 def _check_folder(out_dir: Path, runs: tuple[RunSpec, ...], overwrite: bool) -> None:
     """Refuse a folder that holds a single run, or runs of another config without ``overwrite``
     (then remove the stale campaign figures)."""
-    from granpack.simulation import CONFIG_FILE, RUN_FILES
+    from granpack.io.run_folder import CONFIG_FILE, RUN_FILES
 
     if (out_dir / CONFIG_FILE).is_file() and any((out_dir / name).is_file() for name in RUN_FILES):
         raise InputError(f"--out {out_dir}: holds a single run (granpack run); a campaign goes into a folder of its own")

@@ -1,0 +1,144 @@
+"""The rules of a run folder: which files make it hold a run, and who may write there.
+
+A folder holds a run when it has any of :data:`RUN_FILES`; a run goes on there only when told
+(resume), replaces it only when told (overwrite), and never replaces a ``config.toml`` that is
+not a granpack run's own. A campaign's folder (:data:`CAMPAIGN_FILES`) takes no run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from granpack.errors import InputError
+from granpack.io.atomic import output_folder
+from granpack.io.gsd import read_packing
+
+__all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE", "TIMELINE_FILE",
+           "PROGRESS_FILE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
+           "clear_run", "claim_folder"]
+
+CONFIG_FILE = "config.toml"
+CHECKPOINT_FILE = "checkpoint.gsd"
+FINAL_FILE = "final.gsd"
+SUMMARY_FILE = "summary.json"
+TRAJECTORY_FILE = "trajectory.gsd"
+TIMELINE_FILE = "timeline.csv"
+#: the progress lines and notes of a run with ``progress="log"`` (a campaign's runs), appended
+PROGRESS_FILE = "progress.log"
+
+#: files of a run folder that make it "hold a run" (see :func:`claim_folder`): the run's own
+#: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
+RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, "analysis.json",
+             "packing.png")
+#: files that make a folder a campaign's (``granpack campaign`` writes them): no run goes there
+CAMPAIGN_FILES = ("campaign.toml", "runs.csv", "summary.csv")
+#: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
+#: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
+RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
+
+
+def is_resolved_config(path: Path, config_text: str) -> bool:
+    """Whether ``path`` is a resolved config as granpack writes it (this run's or another's, of
+    this version or an older one: it starts with the header line of :meth:`RunConfig.to_toml`)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return False
+    header = config_text.partition("\n")[0]
+    if text == config_text or (header.startswith("#") and text.startswith(header + "\n")):
+        return True
+    from granpack.config import load_config
+
+    try:
+        return load_config(path).to_toml() == text
+    except InputError:
+        return False
+
+
+def checkpoint_when(path: Path) -> str:
+    """`` at t = ... (step ...)`` of a checkpoint, or nothing if it cannot be read."""
+    try:
+        meta = read_packing(path).metadata
+        return f" at t = {float(meta['time']):.6g} sqrt(d/g) (step {int(meta['step'])})"
+    except (InputError, KeyError, TypeError, ValueError, OSError):
+        return ""
+
+
+def clear_run(out_dir: Path) -> list[str]:
+    """Remove the run in ``out_dir`` (:data:`RUN_FILES`, granpack's files in :data:`RUN_FOLDERS`);
+    a sub-folder goes too when nothing else is left in it. Returns what was removed."""
+    removed = []
+    for name in RUN_FILES:
+        if (out_dir / name).is_file():
+            (out_dir / name).unlink()
+            removed.append(name)
+    for folder, suffixes in RUN_FOLDERS.items():
+        path = out_dir / folder
+        if not path.is_dir():
+            continue
+        ours = [p for p in path.iterdir() if p.is_file() and p.suffix in suffixes]
+        for p in ours:
+            p.unlink()
+        if ours:
+            removed.append(f"{folder}/")
+        if not any(path.iterdir()):
+            path.rmdir()
+    return removed
+
+
+def claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bool, note: Callable[[str], None]) -> bool:
+    """Check ``out_dir`` for a run of the resolved config ``config_text`` and create it; clear it
+    with ``overwrite``; ``note`` takes the one-line notes (resuming, overwriting).
+
+    Returns:
+        True if ``resume`` finds a finished run of this config (returned as it is).
+
+    Raises:
+        InputError: ``resume`` and ``overwrite`` both; a campaign's folder; a ``config.toml`` that is
+            not a granpack run's; a run there that neither ``resume`` nor ``overwrite`` lets go on
+            (:func:`granpack.simulation.run_packing`).
+    """
+    if resume and overwrite:
+        raise InputError("--resume and --overwrite exclude each other: continue the run in the folder, or replace it")
+    campaign = [name for name in CAMPAIGN_FILES if (out_dir / name).is_file()]
+    if campaign:
+        raise InputError(f"{out_dir}: is a campaign's folder ({', '.join(campaign)}); a run goes into a folder of its own: "
+                         "choose another --out folder")
+    output_folder(out_dir)
+    present = [name for name in RUN_FILES if (out_dir / name).is_file()]
+    config_path = out_dir / CONFIG_FILE
+    if config_path.exists() and not present and not is_resolved_config(config_path, config_text):
+        raise InputError(f"{config_path}: not a granpack run's resolved config (your own file?) and the run writes "
+                         "its resolved config there; choose another --out folder")
+    finished = (out_dir / SUMMARY_FILE).is_file() and (out_dir / FINAL_FILE).is_file()
+    checkpoint = out_dir / CHECKPOINT_FILE
+    replace_hint = "--overwrite replaces it (its analysis, figures and exports go too)"
+    if resume:
+        if finished:
+            if config_path.is_file() and config_path.read_text(encoding="utf-8") == config_text:
+                note(f"{out_dir} holds a finished run of this config: nothing to resume, its summary stands")
+                return True
+            raise InputError(f"{out_dir}: holds a finished run of another config ({config_path}); nothing to "
+                             f"--resume: {replace_hint}, or choose another --out folder")
+        if checkpoint.is_file():
+            return False
+        if present:
+            raise InputError(f"{out_dir}: no {CHECKPOINT_FILE} to --resume from, but the folder holds "
+                             f"{', '.join(present)}: {replace_hint}, or choose another --out folder")
+        note(f"no {CHECKPOINT_FILE} in {out_dir}: nothing to resume, starting afresh")
+        return False
+    if present and not overwrite:
+        if finished:
+            what = "a finished run (final.gsd, summary.json): --resume returns it as it is, " + replace_hint
+        elif checkpoint.is_file():
+            what = (f"an unfinished run (its checkpoint{checkpoint_when(checkpoint)}): --resume continues it, "
+                    + replace_hint)
+        else:
+            what = f"the outputs of a run ({', '.join(present)}): {replace_hint} (--resume needs a checkpoint)"
+        raise InputError(f"{out_dir}: holds {what}")
+    if overwrite:
+        removed = clear_run(out_dir)
+        if removed:
+            note(f"--overwrite: removed {', '.join(removed)} from {out_dir}")
+    return False
