@@ -21,7 +21,7 @@ its ``family`` is the factor, its ``share`` the mixture's.
 Usage::
 
     python benchmarks/sensitivity.py configs                 # (re)write benchmarks/validation/configs/
-    benchmarks/validation/run.sh OUT 'regime-lmgc_*' ...       # run, keeping the runs in the repository
+    benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs (final.gsd too) in the repository
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
 

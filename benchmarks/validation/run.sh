@@ -7,14 +7,15 @@
 # time-600-seed-1, ...); PATTERNs select its mixtures (granpack campaign --mixture), all if none.
 # The kept runs of benchmarks/validation/runs/CAMPAIGN are restored into OUT/CAMPAIGN first (the
 # finished ones are skipped, the checkpointed ones resumed); the runs are saved back every 15
-# minutes and at the end, so that a stop loses at most the last checkpoint interval.
+# minutes and at the end (final.gsd too, for analyses made afterwards: contact types, layers), so
+# that a stop loses at most the last checkpoint interval.
 set -eu
 out=$1; campaign=$2; shift 2
 here=$(cd "$(dirname "$0")" && pwd)
 kept="$here/runs/$campaign"
 dir="$out/$campaign"
 mkdir -p "$dir" "$kept"
-save() { python "$here/../study_runs.py" save "$dir" --kept "$kept"; }
+save() { python "$here/../study_runs.py" save "$dir" --kept "$kept" --final; }
 python "$here/../study_runs.py" restore "$dir" --kept "$kept"
 set --  $(for p in "$@"; do printf -- '--mixture %s ' "$p"; done)
 ( while sleep 900; do save; done ) &
