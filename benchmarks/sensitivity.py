@@ -24,6 +24,7 @@ Usage::
     benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs (final.gsd too) in the repository
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
+    python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
 setting of each cell, seeds 1 and 2 of the same mixtures in ``benchmarks/study/``. ``phi_bed``
@@ -230,12 +231,41 @@ def markdown(table: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def layers(final: Path, thickness: float = 1.0) -> list[dict]:
+    """Solid fraction and nematic order Q00 of each ``thickness``-thick layer of a packing, from the
+    floor to the top of its highest grain: the profile of a bed too thin for a bulk region. A
+    layer's Q00 is over the non-spherical grains whose centres lie in it (nan with fewer than 10)."""
+    from granpack.analysis.order import order_parameters
+    from granpack.analysis.solid_fraction import slice_volumes
+    from granpack.io.gsd import read_packing
+    from granpack.rotations import quat_to_matrix
+
+    packing = read_packing(final)
+    state = packing.state
+    top = float((state.position[:, 2] + state.radius).max())
+    n = max(1, math.ceil(top / thickness))
+    volume = slice_volumes(packing, 0.0, thickness, n)[0]
+    area = state.box.lx * state.box.ly
+    shaped = ~state.shapes.is_sphere[state.kind]
+    out = []
+    for k in range(n):
+        z0 = k * thickness
+        inside = shaped & (state.position[:, 2] >= z0) & (state.position[:, 2] < z0 + thickness)
+        q00 = order_parameters(quat_to_matrix(state.quaternion[inside]))[0] if inside.sum() >= 10 else float("nan")
+        out.append({"z": z0 + 0.5 * thickness, "phi": float(volume[k] / (area * thickness)), "Q00": q00,
+                    "grains": int(inside.sum())})
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="action", required=True)
     sub.add_parser("configs", help="write the campaign files of benchmarks/validation/configs/")
     sub.add_parser("csv", help="write benchmarks/validation/sensitivity.csv from the kept runs")
     sub.add_parser("table", help="print the markdown table of the kept runs")
+    by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders")
+    by_layer.add_argument("runs", nargs="+", type=Path)
+    by_layer.add_argument("--thickness", type=float, default=1.0, help="layer thickness, d (default 1)")
     args = parser.parse_args(argv)
     if args.action == "configs":
         for path in write_configs():
@@ -244,6 +274,11 @@ def main(argv: list[str] | None = None) -> int:
         table = rows()
         write_csv(table)
         print(f"{len(table)} runs in {CSV.relative_to(ROOT)}", file=sys.stderr)
+    elif args.action == "layers":
+        for run in args.runs:
+            print(f"{run}: z (d), phi, Q00, grains")
+            for layer in layers(run / "final.gsd" if run.is_dir() else run, args.thickness):
+                print(f"  {layer['z']:5.2f}  {layer['phi']:.4f}  {layer['Q00']:.3f}  {layer['grains']}")
     else:
         print(markdown(rows()))
     return 0

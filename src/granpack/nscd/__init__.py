@@ -6,6 +6,8 @@
 - :mod:`~granpack.nscd.nlgs`: the NLGS solver ``solve(problem, options) -> (impulses, info)``.
 - :mod:`~granpack.nscd.warmstart`: impulses carried over from the previous step.
 - :mod:`~granpack.nscd.integrator`: ``step(state, params, warm) -> (contacts, StepInfo)``.
+- :mod:`~granpack.nscd.step_policy`: the alert distance, the substeps and each grain's reach of
+  the next step.
 """
 
 from __future__ import annotations
