@@ -10,8 +10,9 @@ modulus 1e9 Pa (overlaps about 1e-3 d under the pile's weight, the rigid grains'
 out of reach at a reasonable time step), Poisson 0.3, friction angle 0, linear contact law
 (``Law2_ScGeom_FrictPhys_CundallStrack``), Cundall's numerical damping 0.2 (``NewtonIntegrator``),
 time step half the P-wave step. The spheres start as a random loose cloud (``makeCloud``,
-periodic, from 1 d above the floor up to 110 d x (4 d / L)^2: makeCloud cannot place 1000
-spheres in much less, a looser start than granpack's drop deposit). Stop: Yade's
+periodic, from 1 d above the floor up to 110 d in a 4 d cell, else to the height of a cloud at
+solid fraction 0.2: makeCloud cannot place 1000 spheres in much less, a looser start than
+granpack's drop deposit). Stop: Yade's
 ``unbalancedForce()`` (mean net force over mean contact force) below 1e-3, a looser test than
 granpack's per-grain criteria, checked every 500 steps. Prints one JSON line: CPU and wall
 seconds, steps, simulated time in sqrt(d/g), the mean coordination and the largest overlap.
@@ -30,7 +31,7 @@ from yade.minieigenHP import Matrix3
 seed = int(sys.argv[1]) if len(sys.argv) > 1 else 11
 L = float(sys.argv[2]) if len(sys.argv) > 2 else 4.0
 N, G = 1000, 9.81
-TOP = 1.0 + 109.0 * (4.0 / L) ** 2
+TOP = 110.0 if L == 4.0 else 1.0 + N * (3.14159 / 6.0) / (0.2 * L * L)  # 4 d: as measured; else a cloud at 0.2
 O.periodic = True
 O.cell.hSize = Matrix3(L, 0, 0, 0, L, 0, 0, 0, 200.0)
 O.materials.append(FrictMat(young=1e9, poisson=0.3, frictionAngle=0.0, density=2500.0))
