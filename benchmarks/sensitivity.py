@@ -183,18 +183,14 @@ def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
 
 
 def rows() -> list[dict]:
-    """One row per finished run of the sensitivity study, the reference runs first."""
-    varied = sorted(KEPT.glob("*/*/seed-*/analysis.json"))
-    out, references = [], set()
-    for path in varied:
-        factor, _, mixture = path.parent.parent.name.partition("_")
-        references.add(mixture)
-    for mixture in sorted(references):
-        for seed in (1, 2) if not mixture.startswith("time") else ():
-            run = STUDY_RUNS / mixture / f"seed-{seed}"
-            if (run / "analysis.json").is_file():
-                out.append(_row(run, mixture, "default", "default"))
-    for path in varied:
+    """One row per run of the sensitivity study: the reference runs of every cell first (seeds 1
+    and 2 of each varied mixture, and the capped runs the ``time-600`` factor continues, from
+    ``benchmarks/study/``), then every finished varied run kept in ``benchmarks/validation/runs/``."""
+    references = sorted({(name, seed) for _, name, _ in FACTORS for seed in (1, 2)}
+                        | {(name, seed) for seed, names in CAPPED.items() for name in names})
+    out = [_row(STUDY_RUNS / name / f"seed-{seed}", name, "default", "default") for name, seed in references
+           if (STUDY_RUNS / name / f"seed-{seed}" / "analysis.json").is_file()]
+    for path in sorted(KEPT.glob("*/*/seed-*/analysis.json")):
         factor, _, mixture = path.parent.parent.name.partition("_")
         out.append(_row(path.parent, mixture, factor, factor.partition("-")[2]))
     return out
