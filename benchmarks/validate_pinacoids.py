@@ -113,9 +113,8 @@ def expected_column(populations: list[dict], n: int, lateral: float) -> float:
     """Height of the settled pile at a solid fraction of 0.6, in d (the largest grain size)."""
     from granpack.mixture import Mixture
 
-    rows = Mixture.from_config(_config(populations, n, lateral)).table()
-    volume = sum(row["count"] * row["particle_volume"] for row in rows)
-    return volume / (PHI_ESTIMATE * lateral ** 2) / max(row["size"] for row in rows)
+    config = _config(populations, n, lateral)
+    return Mixture.from_config(config).pile_height(lateral, PHI_ESTIMATE) / config.largest_size
 
 
 def needed_column() -> float:

@@ -99,13 +99,6 @@ def _note(message: str) -> None:
     typer.echo(message, err=True)
 
 
-#: solid fraction at which `granpack check` expects a settled pile of one grain size to stand
-#: (measured 0.61-0.67 for the pinacoid and sphere piles, docs/design-notes.md)
-_PHI_ONE_SIZE = 0.6
-#: the same for a mix of sizes (measured 0.70-0.74 for mixes of sizes 1 and 1/3)
-_PHI_MIXED_SIZES = 0.72
-
-
 def _warnings_of(cfg, mixture) -> list[str]:
     """What `check` and `run` warn of: settings outside their usual range, a pile too short."""
     column = _column_warning(cfg, mixture)
@@ -115,20 +108,18 @@ def _warnings_of(cfg, mixture) -> list[str]:
 def _column_warning(cfg, mixture) -> str | None:
     """A warning when the settled pile is expected to be too low for a bulk region (else None).
 
-    The height is estimated as the grains' volume over the cell area at a solid fraction of
-    :data:`_PHI_ONE_SIZE`, or :data:`_PHI_MIXED_SIZES` for a mix of grain sizes, whose small
-    grains fill the voids of the large ones; the bulk region of ``granpack analyze`` starts
+    The height is :meth:`granpack.mixture.Mixture.pile_height`; the bulk region of ``granpack analyze`` starts
     ``n_bottom d`` above the wall, ends ``n_top d`` below the surface and must be at least ``d``
     thick (``d`` the largest grain size, :class:`granpack.analysis.report.AnalysisOptions`).
     """
     from granpack.analysis.report import AnalysisOptions
 
     opt = AnalysisOptions()
-    rows = mixture.table()
-    volume = sum(row["count"] * row["particle_volume"] for row in rows)
-    d = max(row["size"] for row in rows)
-    phi = _PHI_MIXED_SIZES if len({row["size"] for row in rows}) > 1 else _PHI_ONE_SIZE
-    height = volume / (phi * cfg.lateral_size ** 2)
+    from granpack.mixture import PHI_MIXED_SIZES, PHI_ONE_SIZE
+
+    d = cfg.largest_size
+    phi = PHI_MIXED_SIZES if len({p.size for p in cfg.populations}) > 1 else PHI_ONE_SIZE
+    height = mixture.pile_height(cfg.lateral_size, phi)
     needed = (opt.n_bottom + opt.n_top + 1.0) * d
     if height >= needed:
         return None

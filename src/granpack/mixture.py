@@ -24,6 +24,12 @@ from granpack.shapes import Shape, ShapeTable
 __all__ = ["Mixture", "volume_share_counts"]
 
 
+#: solid fraction at which a settled pile of one grain size is expected to stand (measured
+#: 0.61-0.67 for the pinacoid and sphere piles)
+PHI_ONE_SIZE = 0.6
+#: the same for a mix of sizes (measured 0.70-0.74 for mixes of sizes 1 and 1/3)
+PHI_MIXED_SIZES = 0.72
+
 def _errors(counts: np.ndarray, shares: np.ndarray, volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Largest and total share error of each row of ``counts`` ``(C, K)``."""
     solid = counts * volumes
@@ -149,6 +155,14 @@ class Mixture:
         """``(K,)`` volume shares of the chosen counts, :math:`n_i v_i / \\sum_j n_j v_j`."""
         solid = self.counts * self.particle_volumes
         return solid / solid.sum()
+
+    def pile_height(self, lateral_size: float, solid_fraction: float | None = None) -> float:
+        """Expected height of the settled pile, d: the grains' volume over the cell's area at
+        ``solid_fraction``; by default :data:`PHI_ONE_SIZE` for grains of one size and
+        :data:`PHI_MIXED_SIZES` for a mix of sizes, whose small grains fill the large ones' voids."""
+        if solid_fraction is None:
+            solid_fraction = PHI_MIXED_SIZES if len({p.size for p in self.populations}) > 1 else PHI_ONE_SIZE
+        return float((self.counts * self.particle_volumes).sum()) / (solid_fraction * lateral_size ** 2)
 
     def table(self) -> list[dict]:
         """One row per population: ``population``, ``shape``, ``size`` (d), ``aspect`` (pinacoids,
