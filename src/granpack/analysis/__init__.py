@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from granpack.analysis._base import AnalysisWarning, NotComputedError
 from granpack.analysis.coordination import Coordination
-from granpack.analysis.equilibrium import Equilibrium
+from granpack.analysis.balance import Equilibrium
 from granpack.analysis.fit import ExponentialFit
 from granpack.analysis.homogeneity import Homogeneity
 from granpack.analysis.interpenetration import Interpenetration

@@ -23,7 +23,7 @@ import numpy as np
 
 from granpack.analysis._base import AnalysisWarning
 from granpack.analysis.coordination import Coordination
-from granpack.analysis.equilibrium import Equilibrium
+from granpack.analysis.balance import Equilibrium
 from granpack.analysis.homogeneity import Homogeneity
 from granpack.analysis.interpenetration import Interpenetration
 from granpack.analysis.order import Order

@@ -1,4 +1,4 @@
-"""Equilibrium figures of a packing (the criteria themselves live in :mod:`granpack.equilibrium`).
+"""The balance of a packing: its equilibrium figures (the criteria: :mod:`granpack.equilibrium`).
 
 Reports the worst normalised net force :math:`|F_p|/(d_p^2 P_p)`, net torque
 :math:`|T_p|/(d_p^3 P_p)`, kinetic energy :math:`E_p/(d_p^3 \\bar P)` and the wall force over the
