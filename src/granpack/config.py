@@ -227,9 +227,9 @@ class SolverConfig(_Model):
         default=0.0,
         ge=0,
         description="Largest speed of that slow recovery at rest, sqrt(g d); 0 (default): none, the run ends "
-        "at the first pass of the window with its overlaps up to recovery_slop. 2e-4 brings k from about "
-        "1.4e-4 to 4-5e-5 on 1000 isometric pinacoids, but the push sets off rearrangements: 10 to 40 "
-        "sqrt(d/g) more at 1000 grains, 110 more on a 3000-grain pile.",
+        "at the first pass of the window with its overlaps up to recovery_slop. Rule of thumb: 2e-4 brings the "
+        "expansion coefficient k down by about three times, at the price of rearrangements that the push sets "
+        "off (tens of sqrt(d/g) more to rest).",
     )
     overlap_slop: _Number = Field(
         default=2e-3,
@@ -247,9 +247,8 @@ class SolverConfig(_Model):
         default=5,
         ge=1,
         description="While grains move fast (alert distance raised), positions are corrected every this "
-        "many steps only (1: every step). During the impact of a pour the overlaps come from the impacts "
-        "themselves (1e-2 d with a correction at every step or every fifth), and a correction at every "
-        "step was two thirds of the cost.",
+        "many steps only (1: every step): the overlaps of a pour's impacts come from the impacts themselves, "
+        "so a correction at every step costs much and removes little.",
     )
     parallel_points: int = Field(
         default=2000,
@@ -304,7 +303,7 @@ class EquilibriumConfig(_Model):
 
     max_time: _Number = Field(
         default=300.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g). "
-        "3000 isometric pinacoids in an 8 d cell rest at about 190, 1000 in a 4 d cell at 70-110.",
+        "Rule of thumb: piles of some thousand grains rest at t = 50 to 250, wider and flatter ones later.",
     )
     force_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |F_p| / (d_p^2 P) for every grain.")
     torque_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |T_p| / (d_p^3 P) for every grain.")
