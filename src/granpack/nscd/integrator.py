@@ -90,8 +90,8 @@ class StepParameters:
         check_every: sweeps per convergence check.
         alert: detection distance, d.
         overlap_slop: overlap above which positions are corrected (to ``CORRECTED_OVERLAP`` of it), d;
-            ``0`` disables the correction. The default (5e-4 d) keeps every overlap of a pile at
-            rest below about 5e-4 d.
+            ``0`` disables the correction. A run takes it from its config (``solver.overlap_slop``,
+            :func:`granpack.simulation.step_parameters`).
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
