@@ -569,3 +569,17 @@ def test_the_deposit_order_is_recorded_before_gravity_acts(tmp_path):
     assert summary["initial_order"] == pytest.approx(simulation.deposit_order(state))
     spheres = run_packing(sphere_config(n=20, max_time=0.05), tmp_path / "spheres", progress=False)
     assert math.isnan(spheres["initial_order"]["Q00"])
+
+
+def test_a_checkpoint_whose_config_comments_differ_resumes(tmp_path, monkeypatch):
+    """A checkpoint written by a version whose key descriptions read otherwise resumes (the
+    settings decide, not the comments); one of other settings is still refused."""
+    from granpack.io.gsd import write_packing
+
+    config = sphere_config(n=40, max_time=2.0)
+    killed_run(config, tmp_path, monkeypatch, at_solve=250)
+    saved = read_packing(tmp_path / "checkpoint.gsd")
+    reworded = saved.metadata["config"].replace("# Time step h", "# The time step h")
+    assert reworded != saved.metadata["config"]
+    write_packing(tmp_path / "checkpoint.gsd", replace(saved, metadata={**saved.metadata, "config": reworded}))
+    assert run_packing(config, tmp_path, resume=True, progress=False)["steps"] > 0

@@ -205,6 +205,21 @@ def _packing(state: ParticleState, contacts: ContactSet, config: RunConfig, mixt
                    population_names=mixture.names, metadata=meta)
 
 
+def _same_config(saved_text: str | None, config: RunConfig) -> bool:
+    """Whether a checkpoint's resolved config is ``config``: the same settings, whatever the
+    comments of the version that wrote it (the descriptions of the keys)."""
+    if saved_text == config.to_toml():
+        return True
+    import tomllib
+
+    from granpack.config import load_config_dict
+
+    try:
+        return load_config_dict(tomllib.loads(saved_text or "")) == config
+    except (InputError, tomllib.TOMLDecodeError):
+        return False
+
+
 def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, _Counters] | None:
     """State, warm contacts and counters of the checkpoint in ``out_dir``, or None if there is none."""
     path = out_dir / CHECKPOINT_FILE
@@ -212,7 +227,7 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
         return None
     saved = read_packing(path)
     meta = saved.metadata
-    if meta.get("config") != config.to_toml():
+    if not _same_config(meta.get("config"), config):
         raise InputError(f"{path}: checkpoint of another config than {out_dir / CONFIG_FILE}; resume with that config, "
                          "or replace the run with --overwrite")
     s = saved.state
