@@ -20,7 +20,7 @@ Cases (`--case NAME`, repeatable; default: all, in this order, about two hours o
 Usage::
 
     python benchmarks/bench_settle.py --case pinacoids-1000 --out /tmp/settle --figure settle.png
-    python benchmarks/bench_settle.py --case pinacoids-1000 --seed 12 --set solver.end_game=none
+    python benchmarks/bench_settle.py --case pinacoids-1000 --seed 12 --set end_game.mode=none
     python benchmarks/bench_settle.py --figure-of RUN_DIR --figure-of RUN_DIR2 --figure settle.png
 """
 

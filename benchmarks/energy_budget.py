@@ -41,7 +41,7 @@ from granpack.contact import detect
 from granpack.io.gsd import read_packing
 from granpack.nscd import advance, kinetic_energy, potential_energy, predict
 from granpack.nscd.problem import assemble
-from granpack.simulation import step_parameters
+from granpack.settling import step_parameters
 
 TERMS = ("dE", "W", "opening", "closing", "residual", "push", "landing", "correction", "sweeps")
 

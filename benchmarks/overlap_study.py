@@ -8,7 +8,7 @@ equilibrium criteria and status, the NLGS sweeps, the position corrections and, 
 ``--every`` sqrt(d/g), the mean NLGS sweeps, the fraction of corrected steps and the unconverged
 steps.
 
-    python benchmarks/overlap_study.py --time 60 --set solver.overlap_slop=1e-4 --seed 2
+    python benchmarks/overlap_study.py --time 60 --set overlap.projection_slop=1e-4 --seed 2
 
 Results are tabled in benchmarks/README.md; the decisions they informed are in docs/design-notes.md
 and the module docstring of ``granpack.nscd.integrator``.
@@ -26,10 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+import granpack.settling as settling
 import granpack.simulation as simulation
 from granpack.contact import Detector
 from granpack.config import load_config_dict
 from granpack.io.gsd import read_packing
+from granpack.io.run_folder import FINAL_FILE
 from granpack.nscd import kinetic_energy
 
 
@@ -71,20 +73,20 @@ def main() -> None:
     config = load_config_dict(raw, source="overlap_study")
 
     log = []
-    advance = simulation.advance
+    advance = settling.advance
 
     def logged(state, *a, **k):
         contacts, info = advance(state, *a, **k)
         log.append((state.time, info.iterations, info.correction_iterations, info.converged))
         return contacts, info
 
-    simulation.advance = logged
+    settling.advance = logged
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         start = time.perf_counter()
         summary = simulation.run_packing(config, out, overwrite=True, progress=False)
         wall = time.perf_counter() - start
-        packing = read_packing(out / simulation.FINAL_FILE)
+        packing = read_packing(out / FINAL_FILE)
     overlap = np.maximum(0.0, -packing.contacts.gap)
     depth = _penetration_depths(packing.state)
     steps = np.array(log)

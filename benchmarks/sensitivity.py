@@ -61,14 +61,14 @@ COLUMNS = ("mixture", "factor", "setting", "seed", "grains", "cell", "status", "
            "phi_corrected", "N", "Ns", "Nd", "Nt", "Nc", "rattler_fraction", "Q00", "Q22", "cpu_s")
 
 #: the study engine's contact regime: no push-back, no projection of overlaps
-LMGC_REGIME = {"recovery_rate": 0.0, "overlap_slop": 0.0, "pour_overlap_slop": 0.0}
+LMGC_REGIME = {"recovery_rate": 0.0, "projection_slop": 0.0, "pour_projection_slop": 0.0}
 
 #: (factor, mixture of examples/study.toml, overrides of the mixture's own keys)
 FACTORS: tuple[tuple[str, str, dict], ...] = (
-    ("regime-lmgc", "pinacoids-small-0", {"solver": LMGC_REGIME}),
-    ("regime-lmgc", "pinacoids-small-30", {"solver": LMGC_REGIME}),
-    ("regime-lmgc", "flat-100", {"solver": LMGC_REGIME}),
-    ("regime-lmgc", "flat-elongated-100", {"solver": LMGC_REGIME}),
+    ("regime-lmgc", "pinacoids-small-0", {"overlap": LMGC_REGIME}),
+    ("regime-lmgc", "pinacoids-small-30", {"overlap": LMGC_REGIME}),
+    ("regime-lmgc", "flat-100", {"overlap": LMGC_REGIME}),
+    ("regime-lmgc", "flat-elongated-100", {"overlap": LMGC_REGIME}),
     ("cell-study", "flat-elongated-100", {"lateral_size": 8.0}),
     ("cell-study", "elongated-100", {"lateral_size": 10.0}),
     ("cell-study", "flat-100", {"lateral_size": 8.0}),

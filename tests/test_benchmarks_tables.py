@@ -128,7 +128,7 @@ def test_the_sensitivity_campaigns_vary_one_factor_against_the_study(sensitivity
     study = {m["name"]: m for m in tomllib.loads(sensitivity.STUDY.read_text())["mixtures"]}
     varied = {m["name"]: m for m in tomllib.loads(committed["sensitivity.toml"])["mixtures"]}
     lmgc = varied["regime-lmgc_pinacoids-small-30"]
-    assert lmgc["solver"] == sensitivity.LMGC_REGIME and lmgc["populations"] == study["pinacoids-small-30"]["populations"]
+    assert lmgc["overlap"] == sensitivity.LMGC_REGIME and lmgc["populations"] == study["pinacoids-small-30"]["populations"]
     assert varied["cell-study_flat-elongated-100"]["lateral_size"] == 8.0
     assert varied["width-x3_pinacoids-small-30"]["n_particles"] == 9000
     assert varied["width-x3_pinacoids-small-30"]["lateral_size"] == pytest.approx(3.0 * math.sqrt(3.0), abs=1e-4)

@@ -201,7 +201,7 @@ def test_check_reads_a_campaign_one_row_per_mixture(tmp_path, capsys):
     path = tmp_path / "c.toml"
     path.write_text(TINY.replace("lateral_size = 2.5", "lateral_size = 20.0"))
     code, out, err = _check([str(path)], capsys)
-    assert code == 0 and "2 mixtures x 2 replicas = 4 runs" in out and "net force below" in out
+    assert code == 0 and "2 mixtures x 2 replicas = 4 runs" in out and "force_tolerance 0.0001 d_p^2 P" in out
     cells = {row[0]: row for row in ([c.strip() for c in line.split("│")[1:-1]] for line in out.splitlines()
                                      if line.startswith("│"))}
     assert cells["mono"] == ["mono", "spheres", "0", "150", "3", "11, 12", "sphere-1 (150, 1.0000)"]
@@ -481,6 +481,24 @@ def test_overwrite_lets_an_edited_campaign_replace_its_runs_and_drops_the_stale_
     for run in spec.runs:  # the runs' own task records match now: nothing reported as changed
         write_task(tmp_path / run.folder, run)
     assert changed_runs(tmp_path, spec.runs) == []
+
+
+def test_runs_kept_in_the_flat_solver_layout_of_0_1_0_are_the_same_runs_as_in_todays_layout(tmp_path):
+    """A campaign file rewritten from ``[base.solver] time_step`` to ``[base.time_stepping] time_step``
+    leaves its finished runs finished; a changed value still counts as another config."""
+    from granpack.campaign.runner import changed_runs
+    from granpack.campaign.store import task_matches
+
+    spec = load_campaign_from_text(tmp_path, TINY)
+    for run in spec.runs:
+        old = dataclasses.replace(run, config={**run.config, "solver": {"time_step": 5e-3, "tolerance": 1e-4}})
+        (tmp_path / run.folder).mkdir(parents=True)
+        (tmp_path / run.folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, 0.7)))
+        write_task(tmp_path / run.folder, old)
+    new = [dataclasses.replace(r, config={**r.config, "time_stepping": {"time_step": 5e-3}}) for r in spec.runs]
+    assert all(task_matches(tmp_path / r.folder, r) for r in new) and changed_runs(tmp_path, new) == []
+    other = [dataclasses.replace(r, config={**r.config, "time_stepping": {"time_step": 4e-3}}) for r in spec.runs]
+    assert changed_runs(tmp_path, other) == other
 
 
 def load_campaign_from_text(folder: Path, text: str):

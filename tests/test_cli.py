@@ -39,8 +39,11 @@ size = 0.3333333333
 aspect = [1.0, 1.0]
 volume_fraction = 0.3
 
-[solver]
+[time_stepping]
 time_step = 2e-3
+
+[solver]
+tolerance = 1e-4
 """
 
 
@@ -67,7 +70,7 @@ volume_fraction = 1.0
 BAD = {
     "not-toml": ("seed = = 1\n", "not valid TOML"),
     "unknown-key": (good_with("seed = 3", "seed = 3\ncolour = 1"), "colour: unknown key"),
-    "unknown-solver-key": (good_with("time_step = 2e-3", "dt = 2e-3"), "solver.dt: unknown key"),
+    "unknown-solver-key": (good_with("tolerance = 1e-4", "dt = 2e-3"), "solver.dt: unknown key"),
     "unknown-shape": (good_with('shape = "pinacoid"', 'shape = "cube"'), "populations[0].shape: must be"),
     "size-zero": (good_with("size = 1.0", "size = 0.0"), "populations[0].size: must be > 0"),
     "size-negative": (good_with("size = 0.3333333333", "size = -1"), "populations[1].size: must be > 0 (got -1)"),
@@ -78,10 +81,10 @@ BAD = {
     "lateral-too-small": (good_with("lateral_size = 8.0", "lateral_size = 2.0"), "lateral_size: must exceed 2 x (largest grain size"),
     "coplanar-vertices": (COPLANAR, "populations[0].vertices: vertices are coplanar"),
     "non-convex-vertices": (NON_CONVEX, "populations[0].vertices: vertex 4"),
-    "time-step-zero": (good_with("time_step = 2e-3", "time_step = 0.0"), "solver.time_step: must be > 0"),
-    "friction-negative": (good_with("time_step = 2e-3", "friction = -0.2"), "solver.friction: must be >= 0"),
-    "restitution-above-1": (good_with("time_step = 2e-3", "restitution = 1.2"), "solver.restitution: must be <= 1"),
-    "restitution-negative": (good_with("time_step = 2e-3", "restitution = -0.1"), "solver.restitution: must be >= 0"),
+    "time-step-zero": (good_with("time_step = 2e-3", "time_step = 0.0"), "time_stepping.time_step: must be > 0"),
+    "friction-negative": (good_with("tolerance = 1e-4", "friction = -0.2"), "solver.friction: must be >= 0"),
+    "restitution-above-1": (good_with("tolerance = 1e-4", "restitution = 1.2"), "solver.restitution: must be <= 1"),
+    "restitution-negative": (good_with("tolerance = 1e-4", "restitution = -0.1"), "solver.restitution: must be >= 0"),
 }
 
 
@@ -90,6 +93,21 @@ def run_main(argv, capsys) -> tuple[int, str, str]:
         main(argv)
     out, err = capsys.readouterr()
     return info.value.code, out, err
+
+
+def test_check_and_run_name_the_new_keys_of_a_file_in_the_flat_solver_layout_of_0_1_0(tmp_path, capsys):
+    path = tmp_path / "old.toml"
+    path.write_text(GOOD.replace("[time_stepping]\ntime_step = 2e-3\n\n[solver]\n",
+                                 "[solver]\ntime_step = 2e-3\noverlap_slop = 1e-3\n"))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and "time_stepping: time_step 0.002 sqrt(d/g)" in out and "projection_slop 0.001 d" in out
+    warning = next(line for line in err.splitlines() if "granpack 0.1.0" in line)
+    assert "solver.time_step -> time_stepping.time_step" in warning
+    assert "solver.overlap_slop -> overlap.projection_slop" in warning
+    path.write_text(GOOD.replace("[time_stepping]\ntime_step = 2e-3\n\n[solver]\n", "[solver]\ntime_step = 2e-3\n")
+                    + "\n[time_stepping]\ntime_step = 1e-3\n")
+    code, _, err = run_main(["check", str(path)], capsys)
+    assert code == 2 and "solver.time_step: the same setting as time_stepping.time_step" in _one_error_line(err)
 
 
 def test_check_prints_mixture_table(tmp_path, capsys, monkeypatch):
@@ -103,8 +121,10 @@ def test_check_prints_mixture_table(tmp_path, capsys, monkeypatch):
     assert err.startswith("warning: the settled pile will stand about 1.1 d high (solid fraction about 0.72")
     assert err.count("\n") == 1
     for text in ("pinacoid-1-1x1", "pinacoid-0.333333-1x1", "239", "2761", "0.700000", "0.700347", "0.299653",
-                 "N = 3000", "lateral size = 8 d", "time step 0.002", "alert distance = 0.02 d (automatic)",
-                 "net force below 0.0001 d^2 P", "kinetic criterion below 1e-08 d^3 P", "at 5 checks in a row"):
+                 "N = 3000", "lateral size = 8 d", "time_stepping: time_step 0.002 sqrt(d/g)",
+                 "alert distance = 0.02 d (automatic)", "force_tolerance 0.0001 d_p^2 P",
+                 "kinetic_tolerance 1e-08 d^3 P", "window 5 checks", "overlap: recovery_slop 0.0005 d",
+                 "end_game: mode damping", "threads: parallel_points 2000 points"):
         assert text in out, text
 
 
@@ -397,11 +417,11 @@ def default_sigint():
 
 
 def _interrupting_advance(monkeypatch, at_calls, times=1):
-    """Make simulation.advance send SIGINT to this process (``times`` in a row) at the given calls,
+    """Make the settling's advance send SIGINT to this process (``times`` in a row) at the given calls,
     as Ctrl-C would."""
-    import granpack.simulation as simulation
+    import granpack.settling as settling
 
-    advance = simulation.advance
+    advance = settling.advance
     calls = {"n": 0}
 
     def wrapped(*args, **kwargs):
@@ -411,7 +431,7 @@ def _interrupting_advance(monkeypatch, at_calls, times=1):
                 signal.raise_signal(signal.SIGINT)
         return advance(*args, **kwargs)
 
-    monkeypatch.setattr(simulation, "advance", wrapped)
+    monkeypatch.setattr(settling, "advance", wrapped)
     return advance
 
 
@@ -429,9 +449,9 @@ def test_ctrl_c_while_settling_writes_the_checkpoint_and_resumes_bit_for_bit(fin
     checkpoint = read_packing(out / "checkpoint.gsd")
     assert checkpoint.metadata["counters"]["step"] == 137 and not (out / "final.gsd").exists()
 
-    import granpack.simulation as simulation
+    import granpack.settling as settling
 
-    monkeypatch.setattr(simulation, "advance", advance)
+    monkeypatch.setattr(settling, "advance", advance)
     code, stdout, err = run_main(["run", str(config), "--out", str(out)], capsys)  # no silent restart
     assert code == 2 and "unfinished run" in _one_error_line(err) and "t = 0.685" in err
     code, stdout, err = run_main(["run", str(config), "--out", str(out), "--resume"], capsys)
@@ -509,7 +529,7 @@ def test_check_prints_whole_tables_when_not_a_terminal(tmp_path, capsys, monkeyp
     path.write_text(f"n_particles = 3000\nlateral_size = 8.0\n\n{body}")
     code, out, err = run_main(["check", str(path)], capsys)
     assert code == 0 and "…" not in out
-    assert "pinacoid-0.4-1.5x1.25" in out and "0.142857" in out and "overlaps pushed back above" in out
+    assert "pinacoid-0.4-1.5x1.25" in out and "0.142857" in out and "recovery_slop 0.0005 d" in out
     assert max(len(line) for line in out.splitlines()) > 80
 
 
@@ -523,7 +543,7 @@ def test_check_json_and_the_short_column_warning(tmp_path, capsys):
     code, out, err = run_main(["check", str(path), "--json"], capsys)
     result = json.loads(out)
     assert result["valid"] and result["n_particles"] == 20 and result["mixture"][0]["count"] == 20
-    assert result["resolved"]["solver"]["time_step"] == 5e-3 and any("bulk region" in w for w in result["warnings"])
+    assert result["resolved"]["time_stepping"]["time_step"] == 5e-3 and any("bulk region" in w for w in result["warnings"])
     code, out, err = run_main(["check", str(EXAMPLES / "demo.toml")], capsys)
     assert code == 0 and err == ""  # the demo's pile has a bulk region
 
@@ -611,9 +631,9 @@ def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     lines = [line for line in printed if line.startswith("settling t = ") and "(at the last check" not in line]
     assert len(lines) == 4 and lines[-1].startswith("settling t = 1.00/1 sqrt(d/g), step 200, ")
     assert "steps/s" in lines[-1]
-    # between two checks too: every step is due here, each line with the last check's time
+    # between two checks too: every step without a check is due here, each line with the last check's time
     between = [line for line in printed if line.endswith("(at the last check, t = 0.25)")]
-    assert len(between) == 50 and between[0].startswith("settling t = 0.26/1 sqrt(d/g), step 51, ")
+    assert len(between) == 49 and between[0].startswith("settling t = 0.26/1 sqrt(d/g), step 51, ")
 
 
 def test_progress_lines_come_between_checks_far_apart(tmp_path, capsys, monkeypatch):

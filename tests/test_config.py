@@ -9,20 +9,28 @@ import pytest
 
 from granpack.config import (
     AUTO_ALERT_FRACTION,
+    MOVED_SOLVER_KEYS,
+    SETTING_TABLES,
     DepositConfig,
+    EndGameConfig,
     EquilibriumConfig,
     OutputConfig,
+    OverlapConfig,
     PopulationConfig,
     RunConfig,
     SolverConfig,
+    ThreadsConfig,
+    TimeSteppingConfig,
     load_config,
     load_config_dict,
+    moved_keys,
 )
 from granpack.errors import InputError
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Sphere
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-MODELS = (RunConfig, PopulationConfig, SolverConfig, EquilibriumConfig, DepositConfig, OutputConfig)
+MODELS = (RunConfig, PopulationConfig, TimeSteppingConfig, SolverConfig, OverlapConfig, EndGameConfig, ThreadsConfig,
+          EquilibriumConfig, DepositConfig, OutputConfig)
 CUBE = [[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)]
 
 
@@ -52,9 +60,11 @@ def error_of(data: dict) -> str:
 def test_defaults():
     cfg = load_config_dict({"populations": [{"shape": "sphere", "size": 1, "volume_fraction": 1}]})
     assert (cfg.seed, cfg.n_particles, cfg.lateral_size) == (1, 3000, 8.0)
-    s = cfg.solver
-    assert (s.time_step, s.friction, s.restitution, s.tolerance, s.max_iterations, s.theta) == (5e-3, 0, 0, 1e-4, 2000, 0.5)
-    assert s.alert_distance is None and s.check_every == 10
+    s, t = cfg.solver, cfg.time_stepping
+    assert (t.time_step, s.friction, s.restitution, s.tolerance, s.max_iterations, t.theta) == (5e-3, 0, 0, 1e-4, 2000, 0.5)
+    assert t.alert_distance is None and s.check_every == 10
+    assert (cfg.overlap.recovery_slop, cfg.overlap.projection_slop, cfg.end_game.mode, cfg.threads.parallel_points) == (
+        5e-4, 2e-3, "damping", 2000)
     e = cfg.equilibrium
     assert (e.max_time, e.force_tolerance, e.torque_tolerance, e.kinetic_tolerance, e.wall_tolerance) == (
         300.0, 1e-4, 1e-4, 1e-8, 1e-4)
@@ -90,7 +100,8 @@ def test_message_names_file_and_field_path():
     "data, field, words",
     [
         (pinacoids(color="red"), "color", "unknown key"),
-        (pinacoids(solver={"timestep": 1e-3}), "solver.timestep", "allowed: time_step"),
+        (pinacoids(time_stepping={"timestep": 1e-3}), "time_stepping.timestep", "allowed: time_step"),
+        (pinacoids(solver={"timestep": 1e-3}), "solver.timestep", "allowed: friction"),
         (with_population(0, shape="cube"), "populations[0].shape", "'sphere', 'pinacoid' or 'polyhedron'"),
         (with_population(1, size=0), "populations[1].size", "> 0"),
         (with_population(0, aspect=[0.5, 1.0]), "populations[0].aspect", ">= 1"),
@@ -109,12 +120,15 @@ def test_message_names_file_and_field_path():
         (with_population(0, size="1"), "populations[0].size", "number"),
         (with_population(0, size=float("nan")), "populations[0].size", "finite"),
         (pinacoids(lateral_size=2.0), "lateral_size", "at most one periodic image"),
-        (pinacoids(solver={"time_step": 0}), "solver.time_step", "> 0"),
+        (pinacoids(time_stepping={"time_step": 0}), "time_stepping.time_step", "> 0"),
         (pinacoids(solver={"friction": -0.1}), "solver.friction", ">= 0"),
         (pinacoids(solver={"restitution": 1.5}), "solver.restitution", "<= 1"),
         (pinacoids(solver={"restitution": -0.5}), "solver.restitution", ">= 0"),
-        (pinacoids(solver={"theta": 0.4}), "solver.theta", ">= 0.5"),
-        (pinacoids(solver={"alert_distance": 0}), "solver.alert_distance", "> 0"),
+        (pinacoids(time_stepping={"theta": 0.4}), "time_stepping.theta", ">= 0.5"),
+        (pinacoids(time_stepping={"alert_distance": 0}), "time_stepping.alert_distance", "> 0"),
+        (pinacoids(overlap={"recovery_rate": -1}), "overlap.recovery_rate", ">= 0"),
+        (pinacoids(end_game={"mode": "shake"}), "end_game.mode", "'damping' or 'none'"),
+        (pinacoids(threads={"parallel_points": -1}), "threads.parallel_points", ">= 0"),
         (pinacoids(solver=3), "solver", "table"),
         (pinacoids(equilibrium={"window": 0}), "equilibrium.window", ">= 1"),
         (pinacoids(deposit={"method": "rain"}), "deposit.method", "'drop' or 'lmgc'"),
@@ -125,9 +139,9 @@ def test_message_names_file_and_field_path():
         (pinacoids(n_particles=10**12), "n_particles", "<= 2e+06"),
         (pinacoids(lateral_size=1e6), "lateral_size", "contact-grid cells"),
         (pinacoids(solver={"max_iterations": 10**20}), "solver.max_iterations", "<= 1e+07"),
-        (pinacoids(solver={"time_step": 10.0}, equilibrium={"max_time": 3.0}), "solver.time_step",
+        (pinacoids(time_stepping={"time_step": 10.0}, equilibrium={"max_time": 3.0}), "time_stepping.time_step",
          "below equilibrium.max_time"),
-        (pinacoids(equilibrium={"check_interval": 1e-9}), "equilibrium.check_interval", "at least solver.time_step"),
+        (pinacoids(equilibrium={"check_interval": 1e-9}), "equilibrium.check_interval", "at least time_stepping.time_step"),
     ],
 )
 def test_bad_values_give_one_line_naming_the_field(data, field, words):
@@ -164,7 +178,7 @@ def test_lateral_size_rule_uses_largest_grain_and_alert():
     assert load_config_dict(pinacoids(lateral_size=3.0)).lateral_size == 3.0  # the demo's cell
     assert load_config_dict(pinacoids(lateral_size=2.05)).lateral_size == 2.05  # 2 (1 + 0.02) = 2.04
     assert "2.04" in error_of(pinacoids(lateral_size=2.04))
-    assert "= 2.2 d" in error_of(pinacoids(lateral_size=2.1, solver={"alert_distance": 0.1}))
+    assert "= 2.2 d" in error_of(pinacoids(lateral_size=2.1, time_stepping={"alert_distance": 0.1}))
     big = with_population(0, size=1.4) | {"lateral_size": 2.8}
     assert error_of(big).startswith("config.toml: lateral_size: must exceed 2 x (largest grain size 1.4")
 
@@ -186,7 +200,9 @@ def test_make_shape():
 ROUND_TRIP_CASES = [
     pinacoids(),
     pinacoids(seed=7, n_particles=12, lateral_size=5.5,
-              solver={"alert_distance": 0.035, "time_step": 1e-3, "friction": 0.3, "tolerance": 1.666e-4},
+              time_stepping={"alert_distance": 0.035, "time_step": 1e-3},
+              solver={"friction": 0.3, "tolerance": 1.666e-4}, overlap={"projection_slop": 1e-3},
+              end_game={"mode": "none"}, threads={"parallel_points": 0},
               equilibrium={"max_time": 25.0, "kinetic_tolerance": 3e-9, "window": 2},
               deposit={"method": "lmgc", "lateral": "periodic"},
               output={"checkpoint_interval": 1.0, "snapshot_interval": 0.1}),
@@ -211,9 +227,9 @@ def test_to_toml_writes_every_default():
     parsed = tomllib.loads(cfg.to_toml())
     assert parsed["populations"] == [
         {"name": "pinacoid-1-1x1", "shape": "pinacoid", "size": 1.0, "volume_fraction": 1.0, "aspect": [1.0, 1.0]}]
-    for table, model in [("solver", SolverConfig), ("equilibrium", EquilibriumConfig), ("deposit", DepositConfig),
-                         ("output", OutputConfig)]:
-        expected = set(model.model_fields) - ({"alert_distance"} if table == "solver" else set())
+    for table in SETTING_TABLES:
+        model = type(getattr(cfg, table))
+        expected = set(model.model_fields) - ({"alert_distance"} if table == "time_stepping" else set())
         assert set(parsed[table]) == expected
     assert {"seed", "n_particles", "lateral_size"} <= set(parsed)
 
@@ -284,6 +300,44 @@ def test_example_lateral_sizes_and_families():
 
 def test_settings_outside_their_usual_range_are_named_as_advisories():
     assert load_config_dict(pinacoids()).advisories() == []
-    notes = load_config_dict(pinacoids(solver={"time_step": 0.02, "tolerance": 0.01},
+    notes = load_config_dict(pinacoids(time_stepping={"time_step": 0.02}, solver={"tolerance": 0.01},
                                        equilibrium={"max_time": 10.0})).advisories()
-    assert [note.split(" = ")[0] for note in notes] == ["solver.time_step", "solver.tolerance", "equilibrium.max_time"]
+    assert [note.split(" = ")[0] for note in notes] == ["time_stepping.time_step", "solver.tolerance", "equilibrium.max_time"]
+
+
+def test_the_flat_solver_table_of_0_1_0_is_read_as_the_grouped_tables():
+    flat = {"time_step": 2e-3, "tolerance": 3e-4, "overlap_slop": 1e-3, "end_game": "none", "parallel_points": 0,
+            "shake_speed": 1e-3}
+    old = load_config_dict(pinacoids(solver=flat))
+    new = load_config_dict(pinacoids(time_stepping={"time_step": 2e-3}, solver={"tolerance": 3e-4},
+                                     overlap={"projection_slop": 1e-3}, end_game={"mode": "none", "shake_speed": 1e-3},
+                                     threads={"parallel_points": 0}))
+    assert old == new and old.overlap.projection_slop == 1e-3 and old.end_game.mode == "none"
+    assert moved_keys(pinacoids(solver=flat)) == [
+        "solver.time_step -> time_stepping.time_step", "solver.overlap_slop -> overlap.projection_slop",
+        "solver.end_game -> end_game.mode", "solver.parallel_points -> threads.parallel_points",
+        "solver.shake_speed -> end_game.shake_speed"]
+    assert moved_keys(pinacoids(solver={"tolerance": 1e-4})) == []
+    # the same setting in both places is refused, naming both keys
+    both = error_of(pinacoids(solver={"time_step": 2e-3}, time_stepping={"time_step": 1e-3}))
+    assert "solver.time_step" in both and "time_stepping.time_step" in both
+    # every moved key names a field of its new table
+    for table, key in MOVED_SOLVER_KEYS.values():
+        assert key in type(getattr(new, table)).model_fields
+
+
+def test_every_setting_has_one_declaration_that_the_step_defaults_follow():
+    from granpack.nscd import StepParameters
+
+    defaults, config = StepParameters(), load_config_dict(pinacoids())
+    assert (defaults.time_step, defaults.theta, defaults.tolerance, defaults.max_iterations) == (
+        config.time_stepping.time_step, config.time_stepping.theta, config.solver.tolerance, config.solver.max_iterations)
+    assert (defaults.overlap_slop, defaults.recovery_slop, defaults.recovery_rate, defaults.recovery_speed) == (
+        config.overlap.projection_slop, config.overlap.recovery_slop, config.overlap.recovery_rate,
+        config.overlap.recovery_speed)
+    assert defaults.parallel_points == config.threads.parallel_points and defaults.alert == config.resolved_alert_distance
+    # each table's fields, units and descriptions are written once into the resolved TOML
+    text = config.to_toml()
+    for table in SETTING_TABLES:
+        assert f"[{table}]" in text
+    assert "# Time step h. Rule of thumb" in text and "[sqrt(d/g)]" in text

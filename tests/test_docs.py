@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from granpack.config import DepositConfig, EquilibriumConfig, OutputConfig, PopulationConfig, RunConfig, SolverConfig
+from granpack.config import PopulationConfig, RunConfig
 
 HOOKS = Path(__file__).resolve().parents[1] / "docs" / "hooks"
 
@@ -31,13 +31,20 @@ def reference():
 
 
 def test_config_reference_has_every_key(reference):
+    from granpack.config import MOVED_SOLVER_KEYS, SETTING_TABLES, unit_of
+
     page = reference.config_reference()
-    for model in (RunConfig, PopulationConfig, SolverConfig, EquilibriumConfig, DepositConfig, OutputConfig):
+    models = [RunConfig, PopulationConfig] + [type(getattr(RunConfig.model_fields[t], "default_factory")())
+                                              for t in SETTING_TABLES]
+    for model in models:
         for key in model.model_fields:
-            if key not in {"populations", "solver", "equilibrium", "deposit", "output"}:
-                assert f"| `{key}` |" in page, key
-    for table in ("[[populations]]", "[solver]", "[equilibrium]", "[deposit]", "[output]"):
+            if key not in {"populations", *SETTING_TABLES}:
+                unit = unit_of(model, key)
+                assert f"| `{key}` |" in page and (not unit or f"| {unit} |" in page), key
+    for table in ("[[populations]]", *(f"[{t}]" for t in SETTING_TABLES)):
         assert f"## `{table}`" in page
+    for old, (table, key) in MOVED_SOLVER_KEYS.items():
+        assert f"| `{old}` | `{table}.{key}` |" in page
     assert "```toml\n# granpack run config, fully resolved" in page
 
 

@@ -8,7 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import granpack.settling as settling
 import granpack.simulation as simulation
+from granpack.nscd import step_policy
+from granpack.run_record import TIMELINE_COLUMNS, Milestones, RunRecord
 from granpack.analysis.report import analyze_run
 from granpack.cli import main
 from granpack.config import load_config, load_config_dict
@@ -60,7 +63,7 @@ def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back
     assert summary["end_game"]["rest_recovery_from"] is None and summary["final"]["max_overlap"] > 1e-5
 
     def slow(slop):
-        return config.model_copy(update={"solver": config.solver.model_copy(
+        return config.model_copy(update={"overlap": config.overlap.model_copy(
             update={"rest_recovery_slop": slop, "rest_recovery_speed": 2e-4})})
 
     tight = slow(1e-5)
@@ -78,7 +81,7 @@ def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back
 
 def test_timeline_records_every_check_and_the_end_game(settled):
     """timeline.csv: one row per equilibrium check, its columns; the end game started once the
-    kinetic criterion fell below solver.damping_below, and from then on the damping (none on the
+    kinetic criterion fell below end_game.damping_below, and from then on the damping (none on the
     checked steps, so the last checks judge free dynamics); the fine NLGS tolerance from the first
     check below solver.tolerance_below."""
     import csv
@@ -86,12 +89,12 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     config, summary, out = settled
     with (out / simulation.TIMELINE_FILE).open(newline="") as f:
         reader = csv.DictReader(f)
-        assert tuple(reader.fieldnames) == simulation.TIMELINE_COLUMNS
+        assert tuple(reader.fieldnames) == TIMELINE_COLUMNS
         rows = [{k: float(v) for k, v in row.items()} for row in reader]
-    check_steps = round(config.equilibrium.check_interval / config.solver.time_step)
+    check_steps = round(config.equilibrium.check_interval / config.time_stepping.time_step)
     assert [int(r["step"]) for r in rows] == list(range(check_steps, summary["steps"] + 1, check_steps))
     assert rows[-1]["time"] == pytest.approx(summary["simulated_time"])
-    start = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.solver.damping_below)
+    start = next(k for k, r in enumerate(rows) if r["kinetic_criterion"] < config.end_game.damping_below)
     assert all(r["damped_energy"] == 0 for r in rows[: start + 1])
     assert sum(r["damped_energy"] for r in rows[start + 1:]) > 0
     assert summary["end_game"]["started"] and summary["end_game"]["kinetic_energy_removed"] == pytest.approx(
@@ -125,7 +128,7 @@ def test_timeline_energy_budget_has_no_source_but_the_corrections(settled):
 
 
 def test_pour_corrects_positions_every_interval_steps_only(tmp_path):
-    """solver.pour_correction_interval = 5: while the alert distance is raised (grains falling fast)
+    """overlap.pour_projection_interval = 5: while the alert distance is raised (grains falling fast)
     only every fifth step may be corrected, so 80 pinacoids poured for 4 sqrt(d/g) (800 steps, most
     of them fast) are corrected at far fewer steps than with an interval of 1 (measured 114 and 470
     with the slops of a correction that does all the work, 5e-4 and 1e-4 d, no recovery)."""
@@ -134,8 +137,8 @@ def test_pour_corrects_positions_every_interval_steps_only(tmp_path):
         config = load_config_dict({
             "seed": 2, "n_particles": 80, "lateral_size": 3.0,
             "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 1.0], "volume_fraction": 1.0}],
-            "equilibrium": {"max_time": 4.0}, "solver": {"pour_correction_interval": interval, "overlap_slop": 5e-4, "pour_overlap_slop": 1e-4,
-                       "recovery_rate": 0.0},
+            "equilibrium": {"max_time": 4.0}, "overlap": {"pour_projection_interval": interval, "projection_slop": 5e-4,
+                        "pour_projection_slop": 1e-4, "recovery_rate": 0.0},
         })
         summary = run_packing(config, tmp_path / str(interval), progress=False)
         corrected[interval] = summary["position_correction"]["steps"]
@@ -190,7 +193,7 @@ class Killed(BaseException):
 def killed_run(config, out, monkeypatch, at_solve):
     """Run ``config`` into ``out`` and kill it (:class:`Killed`) at its ``at_solve``-th solve,
     leaving the checkpoint a killed process leaves."""
-    advance = simulation.advance
+    advance = settling.advance
     calls = {"n": 0}
 
     def dying_advance(*args, **kwargs):
@@ -199,10 +202,10 @@ def killed_run(config, out, monkeypatch, at_solve):
             raise Killed
         return advance(*args, **kwargs)
 
-    monkeypatch.setattr(simulation, "advance", dying_advance)
+    monkeypatch.setattr(settling, "advance", dying_advance)
     with pytest.raises(Killed):
         run_packing(config, out, progress=False)
-    monkeypatch.setattr(simulation, "advance", advance)
+    monkeypatch.setattr(settling, "advance", advance)
 
 
 def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
@@ -244,7 +247,7 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
     killed_run(config, tmp_path, monkeypatch, at_solve=250)
     saved = read_packing(tmp_path / "checkpoint.gsd")
     counters = dict(saved.metadata["counters"])
-    column = simulation.TIMELINE_COLUMNS.index("potential_energy_change")
+    column = TIMELINE_COLUMNS.index("potential_energy_change")
     counters["timeline"] = [row[:column] + row[column + 1:-1] for row in counters["timeline"]]
     old_rows = len(counters["timeline"])
     assert old_rows > 0
@@ -364,11 +367,11 @@ def test_step_alert_splits_the_step_when_the_cell_cannot_hold_the_alert():
     state, _ = simulation.initial_state(config)
     state.velocity[:] = 0.0
     state.velocity[0, 2] = -10.0  # closing distance 1.5 (2 h 10 + h^2) = 0.15004 d per step of 5e-3
-    assert simulation.step_alert(state, 0.02, 5e-3, 1.0) == (0.16, 1)  # 0.02 x 2^3 covers it
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.06) == (0.06, 3)  # 0.15004 / 3 fits 0.06
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.05) == (0.04, 4)  # / 3 does not fit 0.05
+    assert step_policy.step_alert(state, 0.02, 5e-3, 1.0) == (0.16, 1)  # 0.02 x 2^3 covers it
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.06) == (0.06, 3)  # 0.15004 / 3 fits 0.06
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.05) == (0.04, 4)  # / 3 does not fit 0.05
     state.velocity[0, 2] = 0.0
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.05) == (0.02, 1)
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.05) == (0.02, 1)
 
 
 def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_in_reach_of_something_but_not_of_a_sphere():
@@ -383,30 +386,30 @@ def test_step_alert_splits_the_step_of_a_fast_spinning_polyhedron_in_reach_of_so
     radius = state.radius[0]
     state.position[0] = [1.0, 1.0, 3.0]
     state.position[1] = [1.0, 1.0 + 2 * radius + 0.3, 3.0]  # circumscribed spheres 0.3 d apart
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5)[1] == 1  # no bound on the turn
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5)[1] == 1  # no bound on the turn
     # in free flight: 0.8 d is more than the largest alert (0.5) plus what the pair can close in
     # the step (1.5 x 5e-3 x (R |ω| + 2 h) = 0.19 for R = 0.5), so the turn cannot touch anything
     state.position[1] = [1.0, 1.0 + 2 * radius + 0.8, 3.0]
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
     state.position[1] = [3.0, 3.0, radius + 0.6]  # far from the other grain, within reach of the wall
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 5
     state.position[1, 2] = 2.0  # in free flight
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
     state.position[1] = [1.0, 1.0 + 2 * radius + 0.3, 3.0]
     state.omega[1] = [0.0, 0.0, 17.0]  # 0.085 rad per step: two substeps for R = d/2 ...
-    assert simulation.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 2
+    assert step_policy.step_alert(state, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 2
     small = replace(state, shapes=Mixture.from_config(load_config_dict({
         "n_particles": 2, "lateral_size": 4.0,
         "populations": [{"shape": "pinacoid", "size": 1 / 3, "aspect": [2.0, 3.0], "volume_fraction": 1.0}],
     })).particle_shape_table())
     assert small.radius[1] == pytest.approx(1 / 6)
     # ... one for R = d/6: 0.085 sqrt(1/3) = 0.049 rad scaled, the same surface deviation as 0.049 rad at d/2
-    assert simulation.step_alert(small, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
+    assert step_policy.step_alert(small, 0.02, 5e-3, 0.5, max_rotation=0.05)[1] == 1
     spheres, _ = simulation.initial_state(sphere_config(n=2))
     spheres.velocity[:] = 0.0
     spheres.omega[0] = [0.0, 30.0, 40.0]  # a sphere's gaps do not depend on its rotation
-    assert simulation.step_alert(spheres, 0.02, 5e-3, 10.0, max_rotation=0.05)[1] == 1
+    assert step_policy.step_alert(spheres, 0.02, 5e-3, 10.0, max_rotation=0.05)[1] == 1
 
 
 @pytest.mark.parametrize("max_rotation, deepest", [(0.05, 1e-4), (np.inf, None)])
@@ -414,7 +417,7 @@ def test_a_plate_spinning_onto_another_does_not_sink_into_it_when_its_steps_are_
     """A flat & elongated pinacoid (thickness 0.15 d) lying on the floor, a second one above it
     spinning at 57 rad/sqrt(d/g) about a horizontal axis (0.28 rad per step of 5e-3): in whole
     steps it turns into the lower one 1.7e-2 d deep (the gaps are held linearised in the
-    velocities); split by :func:`simulation.step_alert` to 0.05 rad, not at all (measured 0)."""
+    velocities); split by :func:`step_policy.step_alert` to 0.05 rad, not at all (measured 0)."""
     from dataclasses import replace
 
     from granpack import Box, ShapeTable
@@ -433,7 +436,7 @@ def test_a_plate_spinning_onto_another_does_not_sink_into_it_when_its_steps_are_
     params = StepParameters(time_step=5e-3)
     warm, sinks = None, 0.0
     for _ in range(200):
-        alert, substeps = simulation.step_alert(state, params.alert, 5e-3, 2.0, max_rotation)
+        alert, substeps = step_policy.step_alert(state, params.alert, 5e-3, 2.0, max_rotation)
         for _ in range(substeps):
             warm, _ = step(state, replace(params, alert=alert, time_step=5e-3 / substeps), warm)
         exact = Detector().detect(state, 0.0)
@@ -459,8 +462,8 @@ def test_thin_grains_poured_into_a_narrow_cell_do_not_pass_through_each_other(tm
     assert summary["nlgs"]["solves"] > summary["steps"]
     # a grain passing through a plate (thickness 0.15 d) overlaps it by half that on the way.
     # Measured: 7.4e-3 d at worst during the run (one impact); at the end, while the pile still
-    # moves, max 1.7e-3 d and mean 1.2e-4 d (overlaps above solver.recovery_slop = 5e-4 d are
-    # pushed back at a bounded speed, those above solver.overlap_slop = 2e-3 d also projected out)
+    # moves, max 1.7e-3 d and mean 1.2e-4 d (overlaps above overlap.recovery_slop = 5e-4 d are
+    # pushed back at a bounded speed, those above overlap.projection_slop = 2e-3 d also projected out)
     assert summary["max_overlap_during_run"] < 0.05
     final_gaps = read_packing(tmp_path / "final.gsd").contacts.gap
     assert summary["final"]["max_overlap"] < 5e-3
@@ -481,7 +484,7 @@ def test_overlap_slop_bounds_the_overlaps_of_a_settling_pinacoid_pile(tmp_path, 
     raw = {"seed": 4, "n_particles": 60, "lateral_size": 2.25, "equilibrium": {"max_time": 12.0},
            "populations": [{"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 1.0], "volume_fraction": 1.0}]}
     if slop is not None:
-        raw["solver"] = {"overlap_slop": slop}
+        raw["overlap"] = {"projection_slop": slop}
     summary = run_packing(load_config_dict(raw), tmp_path, progress=False)
     gaps = read_packing(tmp_path / "final.gsd").contacts.gap
     assert len(gaps) > 300 and summary["final"]["max_overlap"] == pytest.approx(max(0.0, -gaps.min()))
@@ -511,42 +514,42 @@ def test_step_reach_gives_a_struck_grain_the_reach_of_the_grain_that_strikes_it(
                           gap=np.zeros(2))
     h, base = 5e-3, 0.02
     fast = 1.5 * (h * 4.0 + 0.5 * h * h)
-    np.testing.assert_allclose(simulation.step_reach(state, base, h, 1, touching), [fast, fast, base / 2])
-    np.testing.assert_allclose(simulation.step_reach(state, base, h, 1), [fast, base / 2, base / 2])
+    np.testing.assert_allclose(step_policy.step_reach(state, base, h, 1, touching), [fast, fast, base / 2])
+    np.testing.assert_allclose(step_policy.step_reach(state, base, h, 1), [fast, base / 2, base / 2])
 
 
 def test_shake_adds_the_speed_in_a_random_direction_reproducibly():
     state = simulation.initial_state(sphere_config(n=30))[0]
     state.velocity[:] = 0.0
-    simulation.shake(state, 1e-3, np.random.default_rng([3, 0]))
+    settling.shake(state, 1e-3, np.random.default_rng([3, 0]))
     np.testing.assert_allclose(np.linalg.norm(state.velocity, axis=1), 1e-3, rtol=1e-12)
     assert abs(state.velocity.mean(axis=0)).max() < 5e-4  # directions spread over the sphere
     again = simulation.initial_state(sphere_config(n=30))[0]
     again.velocity[:] = 0.0
-    simulation.shake(again, 1e-3, np.random.default_rng([3, 0]))
+    settling.shake(again, 1e-3, np.random.default_rng([3, 0]))
     np.testing.assert_array_equal(state.velocity, again.velocity)
 
 
 def test_shake_is_due_near_rest_at_most_once_per_interval():
-    config = load_config_dict({**sphere_config().model_dump(), "solver": {"shake_speed": 1e-3}})
+    config = load_config_dict({**sphere_config().model_dump(), "end_game": {"shake_speed": 1e-3}})
     report = type("Report", (), {"kinetic_energy": 1e-9, "passed": False})()
-    quiet = simulation._Counters(near_rest=True)
-    assert simulation._shake_due(config, quiet, report, 40.0)
-    assert not simulation._shake_due(sphere_config(), quiet, report, 40.0)  # shake_speed 0: never
-    assert not simulation._shake_due(config, simulation._Counters(near_rest=False), report, 40.0)
-    assert not simulation._shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-6, "passed": False})(), 40.0)
+    quiet = RunRecord(milestones=Milestones(near_rest=True))
+    assert settling.shake_due(config, quiet, report, 40.0)
+    assert not settling.shake_due(sphere_config(), quiet, report, 40.0)  # shake_speed 0: never
+    assert not settling.shake_due(config, RunRecord(milestones=Milestones(near_rest=False)), report, 40.0)
+    assert not settling.shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-6, "passed": False})(), 40.0)
     # a pile that meets the criteria is counting its window: no shake
-    assert not simulation._shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-9, "passed": True})(), 40.0)
-    shaken = simulation._Counters(near_rest=True, last_shake=38.0)
-    assert not simulation._shake_due(config, shaken, report, 40.0)
-    assert simulation._shake_due(config, shaken, report, 43.0)
+    assert not settling.shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-9, "passed": True})(), 40.0)
+    shaken = RunRecord(milestones=Milestones(near_rest=True, last_shake=38.0))
+    assert not settling.shake_due(config, shaken, report, 40.0)
+    assert settling.shake_due(config, shaken, report, 43.0)
 
 
 def test_a_shaken_pile_comes_back_to_certified_rest(tmp_path):
     """The shake is given (the summary counts it) and the pile still ends at certified rest. (This
     small pile goes from moving to passing the criteria within one check interval, so the shake is
     asked for below a higher kinetic criterion.)"""
-    config = load_config_dict({**sphere_config().model_dump(), "solver": {"shake_speed": 1e-3, "shake_below": 1e-4}})
+    config = load_config_dict({**sphere_config().model_dump(), "end_game": {"shake_speed": 1e-3, "shake_below": 1e-4}})
     summary = run_packing(config, tmp_path / "shaken", progress=False)
     assert summary["end_game"]["shakes"] >= 1
     assert summary["status"] == STATUS_AT_REST and summary["equilibrium"]["kinetic_energy"] < 1e-8

@@ -105,7 +105,9 @@ def _cell(text: str) -> str:
 def _model_table(model, skip: tuple[str, ...] = ()) -> list[str]:
     from pydantic import BaseModel
 
-    lines = ["| key | type | default | allowed | meaning |", "|---|---|---|---|---|"]
+    from granpack.config import unit_of
+
+    lines = ["| key | type | default | unit | allowed | meaning |", "|---|---|---|---|---|---|"]
     for name, field in model.model_fields.items():
         if name in skip:
             continue
@@ -113,7 +115,7 @@ def _model_table(model, skip: tuple[str, ...] = ()) -> list[str]:
         if isinstance(tp, type) and issubclass(tp, BaseModel):
             continue  # nested tables get their own section
         lines.append(
-            f"| `{name}` | {_type_name(field.annotation)} | {_default(name, field)} | "
+            f"| `{name}` | {_type_name(field.annotation)} | {_default(name, field)} | {_cell(unit_of(model, name))} | "
             f"{_cell(_constraints(field))} | {_cell(field.description or '')} |"
         )
     return lines
@@ -168,6 +170,19 @@ def config_reference() -> str:
     ]
     for name, model in tables:
         lines += ["", f"## `[{name}]`", "", _doc(model), "", *_model_table(model)]
+    lines += [
+        "",
+        "## Config files of granpack 0.1.0",
+        "",
+        "granpack 0.1.0 had one flat `[solver]` table. Such files (and the runs and checkpoints made",
+        "with them) are still read: each of these keys of `[solver]` is taken as the key of today's",
+        "table, and `granpack check` and `granpack run` name the new keys in a warning. Giving a",
+        "setting in both places is an error.",
+        "",
+        "| `[solver]` key of 0.1.0 | today's key |",
+        "|---|---|",
+        *[f"| `{old}` | `{table}.{key}` |" for old, (table, key) in config.MOVED_SOLVER_KEYS.items()],
+    ]
     lines += [
         "",
         "## Example: the demo config, fully resolved",

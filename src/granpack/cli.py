@@ -132,19 +132,42 @@ def _column_warning(cfg, mixture) -> str | None:
 
 
 def _settings_lines(cfg) -> list[str]:
-    """The solver and equilibrium settings of a resolved run config, as `granpack check` prints them."""
-    solver, eq = cfg.solver, cfg.equilibrium
-    return [
-        f"solver: time step {solver.time_step:g} sqrt(d/g), friction {solver.friction:g}, restitution "
-        f"{solver.restitution:g}, tolerance {solver.tolerance:g} ({solver.settling_tolerance:g} far from rest), max "
-        f"iterations {solver.max_iterations}, theta {solver.theta:g}, check every {solver.check_every} sweeps, "
-        f"overlaps pushed back above {solver.recovery_slop:g} d, projected above {solver.overlap_slop:g} d "
-        f"({solver.pour_overlap_slop:g} while grains move fast)",
-        f"equilibrium: net force below {eq.force_tolerance:g} d^2 P, torque below {eq.torque_tolerance:g} d^3 P, "
-        f"kinetic criterion below {eq.kinetic_tolerance:g} d^3 P, wall force within {eq.wall_tolerance:g} of the "
-        f"weight, at {eq.window} checks in a row (one every {eq.check_interval:g} sqrt(d/g)); max time "
-        f"{eq.max_time:g} sqrt(d/g); deposit: {cfg.deposit.method}, {cfg.deposit.lateral} lateral boundaries",
-    ]
+    """The settings of a resolved run config, one line per table (:data:`granpack.config.SETTING_TABLES`)
+    with each key's value and unit, as `granpack check` prints them."""
+    from granpack.config import SETTING_TABLES, unit_of
+
+    lines = []
+    for table in SETTING_TABLES:
+        model = getattr(cfg, table)
+        items = []
+        for key in type(model).model_fields:
+            value, unit = getattr(model, key), unit_of(type(model), key)
+            if key == "alert_distance" and value is None:
+                items.append(f"{key} {cfg.resolved_alert_distance:g} d (automatic)")
+            else:
+                items.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
+                items[-1] += f" {unit}" if unit else ""
+        lines.append(f"{table}: " + ", ".join(items))
+    return lines
+
+
+def _layout_warnings(data: dict) -> list[str]:
+    """A warning naming the new keys when ``data`` (a parsed config) uses the flat ``[solver]``
+    layout of granpack 0.1.0, which is still read (:data:`granpack.config.MOVED_SOLVER_KEYS`)."""
+    from granpack.config import moved_keys
+
+    moved = moved_keys(data)
+    if not moved:
+        return []
+    return [f"the flat [solver] table of granpack 0.1.0 is read as today's tables ({', '.join(moved)}); "
+            "write the keys there"]
+
+
+def _toml_of(path: Path) -> dict:
+    """The parsed TOML of a config file that has already been validated."""
+    import tomllib
+
+    return tomllib.loads(path.read_text(encoding="utf-8"))
 
 
 def _is_campaign_file(path: Path) -> bool:
@@ -178,6 +201,9 @@ def _check_campaign(path: Path, json_output: bool) -> None:
         mixture = Mixture.from_config(cfg)
         for warning in _warnings_of(cfg, mixture):
             warnings.append(f"{mix.name}: {warning}")
+        for warning in _layout_warnings(runs[0].config):
+            if warning not in warnings:
+                warnings.append(warning)
         rows.append({"mixture": mix.name, "family": mix.family, "share": mix.share, "n_particles": cfg.n_particles,
                      "lateral_size": cfg.lateral_size, "seeds": [r.seed for r in runs], "populations": mixture.table()})
     if json_output:
@@ -219,7 +245,7 @@ def check(
         return
     cfg = load_config(config)
     mixture = Mixture.from_config(cfg)
-    found = _warnings_of(cfg, mixture)
+    found = _layout_warnings(_toml_of(config)) + _warnings_of(cfg, mixture)
     if json_output:
         _print_json({
             "config": str(config), "valid": True, "n_particles": mixture.n_particles,
@@ -240,7 +266,7 @@ def check(
     console.print(table)
     console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
                   f"alert distance = {cfg.resolved_alert_distance:g} d"
-                  f"{'' if cfg.solver.alert_distance is not None else ' (automatic)'}", markup=False)
+                  f"{'' if cfg.time_stepping.alert_distance is not None else ' (automatic)'}", markup=False)
     for line in _settings_lines(cfg):
         console.print(line, markup=False)
     for warning in found:
@@ -301,13 +327,14 @@ def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
                  "run the same command again to start over", 130)
 
 
-def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False) -> dict:
+def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False,
+                    layout: tuple[str, ...] = ()) -> dict:
     from granpack.mixture import Mixture
     from granpack.simulation import run_packing
 
     try:  # the warnings of `check`, before hours of work
         summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True,
-                              warnings=_warnings_of(config, Mixture.from_config(config)))
+                              warnings=[*layout, *_warnings_of(config, Mixture.from_config(config))])
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
             raise
@@ -323,7 +350,7 @@ def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: 
     )
     if summary["end_game"].get("rest_recovery_from") is not None:
         typer.echo(f"first at rest at t = {summary['end_game']['rest_recovery_from']:.2f} sqrt(d/g); its overlaps were "
-                   f"then pushed back to {config.solver.rest_recovery_slop:g} d and the criteria checked again")
+                   f"then pushed back to {config.overlap.rest_recovery_slop:g} d and the criteria checked again")
     failing = [name for key, name in (("force_ok", "net force"), ("torque_ok", "net torque"), ("energy_ok", "kinetic energy"),
                                        ("wall_ok", "wall force")) if not eq.get(key)]
     if failing:
@@ -369,7 +396,8 @@ def run(
         cfg = cfg.with_seed(seed)
     _protect_input(config, out, cfg.to_toml())
     again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
-    summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output)
+    summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output,
+                              layout=tuple(_layout_warnings(_toml_of(config))))
     if json_output:
         _print_json({"out": str(out), "files": {name: str(out / name) for name in ("config.toml", "final.gsd", "summary.json")},
                      "summary": summary})

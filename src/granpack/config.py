@@ -10,6 +10,13 @@ reported by :func:`load_config` / :func:`load_config_dict` as one
 
     config.toml: populations[1].size: must be > 0 (got -1)
 
+The settings are grouped by what they control, one table each (:data:`SETTING_TABLES`):
+``[time_stepping]``, ``[solver]`` (contact law and NLGS), ``[overlap]``, ``[end_game]``,
+``[threads]``, ``[equilibrium]``, ``[deposit]``, ``[output]``; each field is declared once here, with
+its default, bounds, unit and meaning, and the nscd defaults, the reference page and ``granpack
+check`` read them from here. A file in the flat ``[solver]`` layout of granpack 0.1.0 is read as
+the grouped one (:data:`MOVED_SOLVER_KEYS`; ``granpack check`` names the new keys).
+
 A :class:`RunConfig` is fully resolved once validated (population names derived, pinacoid aspect
 filled in); :meth:`RunConfig.to_toml` writes it back as TOML that :func:`load_config` reads into an
 equal object.
@@ -32,14 +39,22 @@ from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Spher
 __all__ = [
     "AUTO_ALERT_FRACTION",
     "SHARE_TOLERANCE",
+    "SETTING_TABLES",
+    "MOVED_SOLVER_KEYS",
     "PopulationConfig",
+    "TimeSteppingConfig",
     "SolverConfig",
+    "OverlapConfig",
+    "EndGameConfig",
+    "ThreadsConfig",
     "EquilibriumConfig",
     "DepositConfig",
     "OutputConfig",
     "RunConfig",
     "load_config",
     "load_config_dict",
+    "moved_keys",
+    "unit_of",
 ]
 
 #: automatic alert distance, as a fraction of the largest grain size (docs/method/nscd.md#alert-distance-and-substeps)
@@ -157,142 +172,161 @@ class PopulationConfig(_Model):
         return polyhedron_of_size(self.vertices, self.size, name=self.name)
 
 
-class SolverConfig(_Model):
-    """Time stepping (Moreau-Jean theta scheme) and the NLGS contact solver.
+def _setting(default: Any, unit: str = "", **field: Any) -> Any:
+    """A config field with its unit (``""``: a pure number or a word), which the reference page and
+    ``granpack check`` print beside the value."""
+    return Field(default=default, json_schema_extra={"unit": unit}, **field)
 
-    Method: docs/method/nscd.md and docs/method/position-correction.md.
+
+def unit_of(model: type[BaseModel], key: str) -> str:
+    """The unit declared for ``model.key`` (``""`` if none)."""
+    extra = model.model_fields[key].json_schema_extra
+    return extra.get("unit", "") if isinstance(extra, dict) else ""
+
+
+class TimeSteppingConfig(_Model):
+    """The Moreau-Jean time stepping: step, scheme, and how far ahead contacts are looked for.
+
+    Method: docs/method/nscd.md.
     """
 
-    time_step: _Number = Field(default=5e-3, gt=0, description="Time step h, sqrt(d/g).")
-    friction: _Number = Field(default=0.0, ge=0, description="Coulomb friction coefficient mu (0: frictionless).")
-    restitution: _Number = Field(default=0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
-    tolerance: _Number = Field(default=1e-4, gt=0, description="NLGS convergence tolerance (LMGC90's 'Quad' norm).")
-    settling_tolerance: _Number = Field(
-        default=1e-3,
-        gt=0,
-        description="NLGS tolerance while the pile is far from rest (kinetic criterion above "
-        "`tolerance_below`); the run then switches to `tolerance` for good.",
-    )
-    tolerance_below: _Number = Field(
-        default=1e-5,
-        gt=0,
-        description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the NLGS "
-        "is solved to `tolerance` instead of `settling_tolerance` (for good); the equilibrium window only "
-        "counts checks made with it.",
-    )
-    max_iterations: int = Field(default=2000, ge=1, le=10_000_000, description="Most NLGS sweeps per time step.")
-    theta: _Number = Field(default=0.5, ge=0.5, le=1, description="Theta of the Moreau-Jean scheme, in [0.5, 1].")
-    alert_distance: Optional[_Number] = Field(
-        default=None,
-        gt=0,
-        description=f"Gap below which a pair is a contact candidate, d; unset: automatic, "
-        f"{AUTO_ALERT_FRACTION:g} x the largest grain size.",
-    )
-    max_rotation: _Number = Field(
-        default=0.05,
-        gt=0,
-        description="Largest rotation in one step of a polyhedron of circumscribed radius R = 0.5 d, rad (a grain "
-        "of radius R may turn by max_rotation sqrt(0.5 d / R)): a step in which some grain in reach of another "
-        "grain or the wall would turn further is split into substeps. The gaps are held linearised in the "
-        "velocities, and a turn by phi moves a grain's surface off that path by up to R phi^2 / 2 (6e-4 d for "
-        "0.05 rad and R = 0.5 d).",
-    )
-    check_every: int = Field(default=10, ge=1, le=10_000_000, description="NLGS sweeps between two convergence checks.")
-    recovery_slop: _Number = Field(
-        default=5e-4,
-        ge=0,
-        description="Overlap allowed, d: a deeper one is pushed back by the velocity law (a separating "
-        "velocity of recovery_rate x the excess per step, at most recovery_speed). A pile at rest keeps its "
-        "overlaps below it.",
-    )
-    recovery_rate: _Number = Field(
-        default=0.2,
-        ge=0,
-        description="Fraction of an overlap's excess over recovery_slop pushed back per step; 0: none (the "
-        "plain velocity-level law, which never pushes an overlap back, as LMGC90).",
-    )
-    recovery_speed: _Number = Field(
-        default=0.05,
-        ge=0,
-        description="Largest separating speed of the overlap recovery, sqrt(g d).",
-    )
-    rest_recovery_slop: _Number = Field(
-        default=5e-5,
-        ge=0,
-        description="With `rest_recovery_speed` > 0: when the pile first meets the criteria with a deeper overlap, "
-        "the overlaps deeper than this (d) are pushed back too, at most at `rest_recovery_speed`, and the "
-        "equilibrium window starts again; it then bounds the overlaps of the packing written, hence its k.",
-    )
-    rest_recovery_speed: _Number = Field(
-        default=0.0,
-        ge=0,
-        description="Largest speed of that slow recovery at rest, sqrt(g d); 0 (default): none, the run ends "
-        "at the first pass of the window with its overlaps up to recovery_slop. Rule of thumb: 2e-4 brings the "
-        "expansion coefficient k down by about three times, at the price of rearrangements that the push sets "
-        "off (tens of sqrt(d/g) more to rest).",
-    )
-    overlap_slop: _Number = Field(
-        default=2e-3,
-        ge=0,
-        description="Overlap above which positions are also corrected after a step (a projection, to 0.1 of "
-        "it), d: a backstop for the overlaps the recovery has not yet pushed back; 0: none.",
-    )
-    pour_overlap_slop: _Number = Field(
-        default=2e-3,
-        ge=0,
-        description="The same while grains move fast (alert distance raised above alert_distance), d; "
-        "the smaller of the two applies then.",
-    )
-    pour_correction_interval: int = Field(
-        default=5,
-        ge=1,
-        description="While grains move fast (alert distance raised), positions are corrected every this "
-        "many steps only (1: every step): the overlaps of a pour's impacts come from the impacts themselves, "
-        "so a correction at every step costs much and removes little.",
-    )
-    parallel_points: int = Field(
-        default=2000,
-        ge=0,
-        description="Contact problems of at least this many points are swept by two threads: the lower "
-        "and the upper part of the pile at once, then the points across them. The order of the sweeps, "
-        "and so the run, is the same whatever the number of threads (NUMBA_NUM_THREADS=1: one thread "
-        "does both parts in turn); 0: never split. Each sweep ends on a barrier, so two runs sharing "
-        "two cores should each have NUMBA_NUM_THREADS=1.",
-    )
-    acceleration: Literal["nncg", "none"] = Field(
-        default="nncg",
-        description="Acceleration of the NLGS velocity solve (frictionless, one thread): 'nncg' adds the "
-        "momentum of nonsmooth nonlinear conjugate gradients to each symmetric pair of sweeps (Gauss-Seidel "
-        "alone carries a load down a pile one layer per sweep); 'none': plain NLGS.",
-    )
-    end_game: Literal["damping", "none"] = Field(
-        default="damping",
-        description="How a collapsed pile is brought to rest: 'damping' scales every grain's velocity by "
-        "exp(-damping_rate h) after each step once the kinetic criterion is below `damping_below` (not on "
-        "the steps whose equilibrium is checked, so the criteria judge undamped dynamics); 'none': "
-        "undamped NSCD throughout.",
-    )
-    damping_rate: _Number = Field(default=1.0, gt=0, description="Rate of the end game's viscous damping, 1/sqrt(d/g).")
-    damping_below: _Number = Field(
-        default=1e-3,
-        gt=0,
-        description="Kinetic criterion (largest kinetic energy per grain / (d^3 P)) below which the end "
-        "game starts (for good): with end_game = 'damping', the damping acts from then on.",
-    )
-    shake_speed: _Number = Field(
-        default=0.0,
-        ge=0,
-        description="Speed of the shake, sqrt(g d): each time the pile comes near rest but fails the criteria (kinetic "
-        "criterion below `shake_below`, at most once per `shake_interval`), every grain's velocity gets this speed more in a "
-        "random direction. A grain held by a contact that carries almost no force leaves it then instead of "
-        "tens of sqrt(d/g) later; 0: no shake.",
-    )
-    shake_below: _Number = Field(
-        default=1e-7, gt=0, description="Kinetic criterion (d^3 P) below which the pile is shaken (`shake_speed`)."
-    )
-    shake_interval: _Number = Field(
-        default=5.0, gt=0, description="Least simulated time between two shakes, sqrt(d/g)."
-    )
+    time_step: _Number = _setting(5e-3, "sqrt(d/g)", gt=0, description="Time step h. Rule of thumb: at most "
+                                  "0.01; the overlaps of impacts and the error of the linearised gaps grow with it.")
+    theta: _Number = _setting(0.5, ge=0.5, le=1, description="Theta of the scheme, in [0.5, 1]: 0.5 conserves "
+                              "the energy of free motion, 1 is the most dissipative.")
+    alert_distance: Optional[_Number] = _setting(
+        None, "d", gt=0, description=f"Gap below which a pair is a contact candidate; unset: automatic, "
+        f"{AUTO_ALERT_FRACTION:g} x the largest grain size (raised step by step while grains move fast).")
+    max_rotation: _Number = _setting(
+        0.05, "rad", gt=0, description="Largest rotation in one step of a polyhedron of circumscribed radius "
+        "R = 0.5 d (a grain of radius R may turn by max_rotation sqrt(0.5 d / R)): a step in which some grain in "
+        "reach of another grain or the wall would turn further is split into substeps. A turn by phi moves a "
+        "grain's surface off its linearised path by up to R phi^2 / 2 (6e-4 d at 0.05 rad).")
+
+
+class SolverConfig(_Model):
+    """The contact law and its solver, the nonlinear Gauss-Seidel (NLGS).
+
+    Method: docs/method/nscd.md.
+    """
+
+    friction: _Number = _setting(0.0, ge=0, description="Coulomb friction coefficient mu (0: frictionless).")
+    restitution: _Number = _setting(0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
+    tolerance: _Number = _setting(1e-4, gt=0, description="NLGS convergence tolerance (LMGC90's 'Quad' norm) "
+                                  "near rest. Rule of thumb: at most 1e-3, or the equilibrium criteria are "
+                                  "not met.")
+    settling_tolerance: _Number = _setting(
+        1e-3, gt=0, description="NLGS tolerance while the pile is far from rest (kinetic criterion above "
+        "`tolerance_below`); the run then switches to `tolerance` for good.")
+    tolerance_below: _Number = _setting(
+        1e-5, "d^3 P", gt=0, description="Kinetic criterion (largest kinetic energy per grain) below which the "
+        "NLGS is solved to `tolerance` (for good); the equilibrium window only counts checks made with it.")
+    max_iterations: int = _setting(2000, ge=1, le=10_000_000, description="Most NLGS sweeps per time step.")
+    check_every: int = _setting(10, ge=1, le=10_000_000, description="NLGS sweeps between two convergence checks.")
+    acceleration: Literal["nncg", "none"] = _setting(
+        "nncg", description="'nncg': the momentum of nonsmooth nonlinear conjugate gradients on each symmetric "
+        "pair of sweeps (frictionless; Gauss-Seidel alone carries a load down a pile one layer per sweep); "
+        "'none': plain NLGS.")
+
+
+class OverlapConfig(_Model):
+    """How overlaps are kept small: pushed back by the velocity law, projected away after a step.
+
+    Method: docs/method/position-correction.md.
+    """
+
+    recovery_slop: _Number = _setting(
+        5e-4, "d", ge=0, description="Overlap allowed: a deeper one is pushed back by the velocity law (a "
+        "separating velocity of recovery_rate x the excess per step, at most recovery_speed). A pile at rest "
+        "keeps its overlaps below it.")
+    recovery_rate: _Number = _setting(
+        0.2, ge=0, description="Fraction of an overlap's excess over recovery_slop pushed back per step; 0: "
+        "none (the plain velocity-level law, which never pushes an overlap back, as LMGC90's).")
+    recovery_speed: _Number = _setting(0.05, "sqrt(g d)", ge=0,
+                                       description="Largest separating speed of the overlap recovery.")
+    rest_recovery_slop: _Number = _setting(
+        5e-5, "d", ge=0, description="With `rest_recovery_speed` > 0: when the pile first meets the criteria "
+        "with a deeper overlap, the overlaps deeper than this are pushed back too, at most at "
+        "`rest_recovery_speed`, and the equilibrium window starts again; it then bounds the overlaps of the "
+        "packing written, hence its k.")
+    rest_recovery_speed: _Number = _setting(
+        0.0, "sqrt(g d)", ge=0, description="Largest speed of that slow recovery at rest; 0: none, the run "
+        "ends at the first pass of the window with its overlaps up to recovery_slop. Rule of thumb: 2e-4 "
+        "brings the expansion coefficient k down about three times, for tens of sqrt(d/g) more to rest.")
+    projection_slop: _Number = _setting(
+        2e-3, "d", ge=0, description="Overlap above which positions are also projected after a step (to 0.1 "
+        "of it): a backstop for the overlaps the recovery has not yet pushed back; 0: none.")
+    pour_projection_slop: _Number = _setting(
+        2e-3, "d", ge=0, description="The same while grains move fast (alert distance raised above "
+        "alert_distance); the smaller of the two applies then.")
+    pour_projection_interval: int = _setting(
+        5, "steps", ge=1, description="While grains move fast, positions are projected every this many steps "
+        "only (1: every step): the overlaps of a pour come from its impacts, so a projection at every step "
+        "costs much and removes little.")
+
+
+class EndGameConfig(_Model):
+    """How a collapsed pile is brought to rest.
+
+    Method: docs/method/equilibrium.md.
+    """
+
+    mode: Literal["damping", "none"] = _setting(
+        "damping", description="'damping': every grain's velocity is scaled by exp(-damping_rate h) after "
+        "each step once the kinetic criterion is below `damping_below` (not on the steps whose equilibrium is "
+        "checked, so the criteria judge undamped dynamics); 'none': undamped NSCD throughout.")
+    damping_rate: _Number = _setting(1.0, "1/sqrt(d/g)", gt=0, description="Rate of the viscous damping.")
+    damping_below: _Number = _setting(
+        1e-3, "d^3 P", gt=0, description="Kinetic criterion (largest kinetic energy per grain) below which the "
+        "end game starts, for good.")
+    shake_speed: _Number = _setting(
+        0.0, "sqrt(g d)", ge=0, description="Speed of a shake: each time the pile comes near rest but fails the "
+        "criteria (kinetic criterion below `shake_below`, at most once per `shake_interval`), every grain's "
+        "velocity gets this speed more in a random direction, so that a grain held by a contact that carries "
+        "almost no force leaves it at once; 0: no shake.")
+    shake_below: _Number = _setting(1e-7, "d^3 P", gt=0,
+                                    description="Kinetic criterion below which the pile is shaken.")
+    shake_interval: _Number = _setting(5.0, "sqrt(d/g)", gt=0, description="Least simulated time between two shakes.")
+
+
+class ThreadsConfig(_Model):
+    """How the NLGS uses threads (their number is Numba's: NUMBA_NUM_THREADS).
+
+    Method: docs/method/nscd.md.
+    """
+
+    parallel_points: int = _setting(
+        2000, "points", ge=0, description="Contact problems of at least this many points are swept by two "
+        "threads: the lower and the upper part of the pile at once, then the points across them. The order of "
+        "the sweeps, and so the run, is the same whatever the number of threads; 0: never split. Each sweep "
+        "ends on a barrier, so two runs sharing two cores should each have NUMBA_NUM_THREADS=1.")
+
+
+#: the tables of a run config that hold settings, in the order a resolved config writes them
+SETTING_TABLES = ("time_stepping", "solver", "overlap", "end_game", "threads", "equilibrium", "deposit", "output")
+
+#: keys of the flat ``[solver]`` table of granpack 0.1.0 and where they now live, ``(table, key)``
+MOVED_SOLVER_KEYS = {
+    "time_step": ("time_stepping", "time_step"),
+    "theta": ("time_stepping", "theta"),
+    "alert_distance": ("time_stepping", "alert_distance"),
+    "max_rotation": ("time_stepping", "max_rotation"),
+    "recovery_slop": ("overlap", "recovery_slop"),
+    "recovery_rate": ("overlap", "recovery_rate"),
+    "recovery_speed": ("overlap", "recovery_speed"),
+    "rest_recovery_slop": ("overlap", "rest_recovery_slop"),
+    "rest_recovery_speed": ("overlap", "rest_recovery_speed"),
+    "overlap_slop": ("overlap", "projection_slop"),
+    "pour_overlap_slop": ("overlap", "pour_projection_slop"),
+    "pour_correction_interval": ("overlap", "pour_projection_interval"),
+    "end_game": ("end_game", "mode"),
+    "damping_rate": ("end_game", "damping_rate"),
+    "damping_below": ("end_game", "damping_below"),
+    "shake_speed": ("end_game", "shake_speed"),
+    "shake_below": ("end_game", "shake_below"),
+    "shake_interval": ("end_game", "shake_interval"),
+    "parallel_points": ("threads", "parallel_points"),
+}
 
 
 class EquilibriumConfig(_Model):
@@ -301,20 +335,16 @@ class EquilibriumConfig(_Model):
     Criteria and the stress scale P: docs/method/equilibrium.md.
     """
 
-    max_time: _Number = Field(
-        default=300.0, gt=0, description="Simulated time after which the run stops unsettled, sqrt(d/g). "
-        "Rule of thumb: piles of some thousand grains rest at t = 50 to 250, wider and flatter ones later.",
-    )
-    force_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |F_p| / (d_p^2 P) for every grain.")
-    torque_tolerance: _Number = Field(default=1e-4, gt=0, description="Bound on |T_p| / (d_p^3 P) for every grain.")
-    kinetic_tolerance: _Number = Field(
-        default=1e-8, gt=0, description="Bound on the kinetic energy per grain / (d^3 P)."
-    )
-    wall_tolerance: _Number = Field(
-        default=1e-4, gt=0, description="Bound on |weight - wall force| / weight (global vertical balance)."
-    )
-    window: int = Field(default=5, ge=1, le=10_000_000, description="Consecutive checks that must all pass.")
-    check_interval: _Number = Field(default=0.25, gt=0, description="Simulated time between two checks, sqrt(d/g).")
+    max_time: _Number = _setting(
+        300.0, "sqrt(d/g)", gt=0, description="Simulated time after which the run stops unsettled. Rule of "
+        "thumb: piles of some thousand grains rest at t = 50 to 250, wider and flatter ones later.")
+    force_tolerance: _Number = _setting(1e-4, "d_p^2 P", gt=0, description="Bound on every grain's net force |F_p|.")
+    torque_tolerance: _Number = _setting(1e-4, "d_p^3 P", gt=0, description="Bound on every grain's net torque |T_p|.")
+    kinetic_tolerance: _Number = _setting(1e-8, "d^3 P", gt=0, description="Bound on the kinetic energy per grain.")
+    wall_tolerance: _Number = _setting(
+        1e-4, gt=0, description="Bound on |weight - wall force| / weight (the global vertical balance).")
+    window: int = _setting(5, "checks", ge=1, le=10_000_000, description="Consecutive checks that must all pass.")
+    check_interval: _Number = _setting(0.25, "sqrt(d/g)", gt=0, description="Simulated time between two checks.")
 
 
 class DepositConfig(_Model):
@@ -323,29 +353,25 @@ class DepositConfig(_Model):
     Method: docs/method/pluviation.md.
     """
 
-    method: Literal["drop", "lmgc"] = Field(
-        default="drop",
-        description='"drop": random drop and roll; "lmgc": lowest three-support position, as '
-        "LMGC90's depositInBox3D.",
-    )
-    lateral: Literal["walls", "periodic"] = Field(
-        default="walls", description='Lateral boundaries during the deposit: "walls" or "periodic".'
-    )
+    method: Literal["drop", "lmgc"] = _setting(
+        "drop", description='"drop": random drop and roll; "lmgc": lowest three-support position, as '
+        "LMGC90's depositInBox3D.")
+    lateral: Literal["walls", "periodic"] = _setting(
+        "walls", description='Lateral boundaries during the deposit: "walls" or "periodic".')
 
 
 class OutputConfig(_Model):
     """What a run writes besides its final packing."""
 
-    checkpoint_interval: _Number = Field(default=5.0, gt=0, description="Simulated time between checkpoints, sqrt(d/g).")
-    snapshot_interval: _Number = Field(
-        default=0.0, ge=0, description="Simulated time between trajectory snapshots, sqrt(d/g); 0: none."
-    )
+    checkpoint_interval: _Number = _setting(5.0, "sqrt(d/g)", gt=0, description="Simulated time between checkpoints.")
+    snapshot_interval: _Number = _setting(
+        0.0, "sqrt(d/g)", ge=0, description="Simulated time between trajectory snapshots; 0: none.")
 
 
 class RunConfig(_Model):
     """One packing: the grains, the cell, and the solver, equilibrium, deposit and output settings.
 
-    ``lateral_size`` is declared after ``populations`` and ``solver`` because its check uses them.
+    ``lateral_size`` is declared after ``populations`` and ``time_stepping`` because its check uses them.
     """
 
     seed: int = Field(default=1, ge=0, description="Seed of the random generator (deposit, orientations).")
@@ -353,7 +379,11 @@ class RunConfig(_Model):
     populations: Annotated[tuple[PopulationConfig, ...], Strict(False)] = Field(
         min_length=1, description="The grain populations ([[populations]] tables)."
     )
+    time_stepping: TimeSteppingConfig = Field(default_factory=TimeSteppingConfig, description="[time_stepping] table.")
     solver: SolverConfig = Field(default_factory=SolverConfig, description="[solver] table.")
+    overlap: OverlapConfig = Field(default_factory=OverlapConfig, description="[overlap] table.")
+    end_game: EndGameConfig = Field(default_factory=EndGameConfig, description="[end_game] table.")
+    threads: ThreadsConfig = Field(default_factory=ThreadsConfig, description="[threads] table.")
     lateral_size: Annotated[_Number, Field(validate_default=True)] = Field(
         default=8.0, gt=0, description="Side of the square periodic cell, d."
     )
@@ -380,11 +410,11 @@ class RunConfig(_Model):
     @field_validator("lateral_size")
     @classmethod
     def _check_lateral(cls, lateral_size: float, info: ValidationInfo) -> float:
-        populations, solver = info.data.get("populations"), info.data.get("solver")
-        if populations is None or solver is None:
+        populations, stepping = info.data.get("populations"), info.data.get("time_stepping")
+        if populations is None or stepping is None:
             return lateral_size  # reported elsewhere
         largest = max(p.size for p in populations)
-        alert = _alert_distance(solver, largest)
+        alert = _alert_distance(stepping, largest)
         minimum = 2.0 * (largest + alert)
         if not lateral_size > minimum:
             raise ValueError(
@@ -403,11 +433,11 @@ class RunConfig(_Model):
 
     @model_validator(mode="after")
     def _check_times(self) -> "RunConfig":
-        h, end = self.solver.time_step, self.equilibrium.max_time
+        h, end = self.time_stepping.time_step, self.equilibrium.max_time
         if not h < end:
-            raise ValueError(f"solver.time_step: must be below equilibrium.max_time = {end:g} sqrt(d/g) (got {h:g})")
+            raise ValueError(f"time_stepping.time_step: must be below equilibrium.max_time = {end:g} sqrt(d/g) (got {h:g})")
         if self.equilibrium.check_interval < h:
-            raise ValueError(f"equilibrium.check_interval: must be at least solver.time_step = {h:g} sqrt(d/g) "
+            raise ValueError(f"equilibrium.check_interval: must be at least time_stepping.time_step = {h:g} sqrt(d/g) "
                              f"(got {self.equilibrium.check_interval:g})")
         return self
 
@@ -415,9 +445,9 @@ class RunConfig(_Model):
         """Settings that are valid but outside the range where runs are known to go well, each as
         one line naming the key (``granpack check`` and ``granpack run`` print them as warnings)."""
         notes = []
-        h = self.solver.time_step
+        h = self.time_stepping.time_step
         if h > 0.01:
-            notes.append(f"solver.time_step = {h:g} sqrt(d/g) is above 0.01, twice the default 5e-3: the overlaps of "
+            notes.append(f"time_stepping.time_step = {h:g} sqrt(d/g) is above 0.01, twice the default 5e-3: the overlaps of "
                          "impacts and the error of the gaps held linear over a step grow with it")
         if self.solver.tolerance > 1e-3:
             notes.append(f"solver.tolerance = {self.solver.tolerance:g} is above 1e-3: the contact forces are then "
@@ -434,8 +464,8 @@ class RunConfig(_Model):
 
     @property
     def resolved_alert_distance(self) -> float:
-        """The alert distance in use, d: ``solver.alert_distance``, or automatic if unset."""
-        return _alert_distance(self.solver, self.largest_size)
+        """The alert distance in use, d: ``time_stepping.alert_distance``, or automatic if unset."""
+        return _alert_distance(self.time_stepping, self.largest_size)
 
     def with_seed(self, seed: int) -> "RunConfig":
         """This config with another seed.
@@ -448,7 +478,7 @@ class RunConfig(_Model):
     def to_toml(self) -> str:
         """The fully resolved config as TOML (every default written, each key with its description).
 
-        Keys left unset on purpose (``solver.alert_distance`` when automatic) are written as a
+        Keys left unset on purpose (``time_stepping.alert_distance`` when automatic) are written as a
         comment. :func:`load_config_dict` of the parsed text gives an object equal to ``self``.
         """
         lines = [
@@ -461,16 +491,16 @@ class RunConfig(_Model):
             lines += ["", "[[populations]]"]
             keys = [k for k in PopulationConfig.model_fields if getattr(population, k) is not None]
             lines += _toml_keys(population, ["name"] + [k for k in keys if k != "name"])
-        for table in ("solver", "equilibrium", "deposit", "output"):
+        for table in SETTING_TABLES:
             model = getattr(self, table)
             lines += ["", f"[{table}]"] + _toml_keys(model, type(model).model_fields)
         return "\n".join(lines) + "\n"
 
 
-def _alert_distance(solver: SolverConfig, largest_size: float) -> float:
-    """``solver.alert_distance`` or, if unset, ``AUTO_ALERT_FRACTION * largest_size`` (d)."""
-    if solver.alert_distance is not None:
-        return solver.alert_distance
+def _alert_distance(stepping: TimeSteppingConfig, largest_size: float) -> float:
+    """``time_stepping.alert_distance`` or, if unset, ``AUTO_ALERT_FRACTION * largest_size`` (d)."""
+    if stepping.alert_distance is not None:
+        return stepping.alert_distance
     return AUTO_ALERT_FRACTION * largest_size
 
 
@@ -493,7 +523,8 @@ def _toml_keys(model: BaseModel, keys) -> list[str]:
     lines = []
     for key in keys:
         value = getattr(model, key)
-        lines.append(f"# {fields[key].description}")
+        unit = unit_of(type(model), key)
+        lines.append(f"# {fields[key].description}" + (f" [{unit}]" if unit else ""))
         lines.append(f"# {key} = (unset)" if value is None else f"{key} = {_toml_value(value)}")
     return lines
 
@@ -562,12 +593,41 @@ def _describe(error: dict) -> tuple[tuple, str]:
     return loc, messages.get(kind, lambda: f"{error['msg']}{got}")()
 
 
+def moved_keys(data: dict) -> list[str]:
+    """The keys of ``data`` (a parsed config) written in the flat ``[solver]`` table of granpack
+    0.1.0, each as ``"solver.OLD -> TABLE.KEY"`` (:data:`MOVED_SOLVER_KEYS`); empty for today's layout."""
+    solver = data.get("solver") if isinstance(data, dict) else None
+    if not isinstance(solver, dict):
+        return []
+    return [f"solver.{old} -> {'.'.join(MOVED_SOLVER_KEYS[old])}" for old in solver if old in MOVED_SOLVER_KEYS]
+
+
+def _regrouped(data: dict, prefix: str) -> dict:
+    """``data`` with the keys of the flat ``[solver]`` table of granpack 0.1.0 moved to their tables
+    (:data:`MOVED_SOLVER_KEYS`), so that its config files and kept runs keep working."""
+    solver = data.get("solver")
+    if not isinstance(solver, dict) or not any(old in MOVED_SOLVER_KEYS for old in solver):
+        return data
+    data, solver = dict(data), dict(solver)
+    for old in [k for k in solver if k in MOVED_SOLVER_KEYS]:
+        table, key = MOVED_SOLVER_KEYS[old]
+        target = data.get(table, {})
+        if not isinstance(target, dict):
+            continue  # reported by the validation: "must be a table"
+        if key in target:
+            raise InputError(f"{prefix}solver.{old}: the same setting as {table}.{key}, which is also given; keep only "
+                             f"{table}.{key}")
+        data[table] = {**target, key: solver.pop(old)}
+    data["solver"] = solver
+    return data
+
+
 def _validate(data: Any, source: str | None) -> RunConfig:
     prefix = f"{source}: " if source else ""
     if not isinstance(data, dict):
         raise InputError(f"{prefix}must be a table of config keys (got {type(data).__name__})")
     try:
-        return RunConfig.model_validate(data)
+        return RunConfig.model_validate(_regrouped(data, prefix))
     except ValidationError as exc:
         loc, message = _describe(exc.errors(include_url=False)[0])
         where = f"{_field_path(loc)}: " if loc else ""

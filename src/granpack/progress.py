@@ -1,8 +1,8 @@
 """What a run tells while it settles: progress bars or lines, one-line notes, and Ctrl-C.
 
-The run loop of :mod:`granpack.simulation` reports to these observers and reads the interrupt
-flag once per step; they decide where the messages go (stderr, a bar, or the run's
-``progress.log``) and how often.
+The settling loop (:mod:`granpack.settling`) reports to :class:`SettlingProgress` as an observer,
+and the checkpoints of :mod:`granpack.simulation` read the interrupt flag once per step; these
+decide where the messages go (stderr, a bar, or the run's ``progress.log``) and how often.
 """
 
 from __future__ import annotations
@@ -122,6 +122,21 @@ class SettlingProgress:
         elif self.mode in ("lines", "log"):
             self._checked = (ek, n_contacts, report, passes, window, overlap, t)
             self._line(t, time.perf_counter())
+
+    def checked(self, run) -> None:
+        """Observer of a :class:`granpack.settling.Settling`: the figures of the check just made."""
+        from granpack.run_record import TIMELINE_COLUMNS
+
+        row = run.record.timeline[-1]
+        self.update(run.state.time, row[TIMELINE_COLUMNS.index("kinetic_energy_total")], run.contacts.n_manifolds,
+                    run.report, run.record.milestones.passes, run.config.equilibrium.window,
+                    row[TIMELINE_COLUMNS.index("max_overlap")])
+
+    def stepped(self, run) -> None:
+        """Observer of a :class:`granpack.settling.Settling`: a line when one is due (:meth:`tick`)
+        on a step without a check (a check has just given its own)."""
+        if run.record.milestones.step % run.check_every:
+            self.tick(run.state.time)
 
     def tick(self, t: float) -> None:
         """After each step: a line in ``"lines"`` / ``"log"`` mode when one is due since the last."""

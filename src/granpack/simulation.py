@@ -1,47 +1,30 @@
-"""The packing protocol: pluviation, NSCD settling to equilibrium, checkpoints, outputs.
+"""One packing, pour to rest: the run folder, the pluviation, the settling, the outputs.
 
 :func:`run_packing` is the whole of ``granpack run`` (docs: Method > Pluviation):
 
-1. grains get their population (shuffled, :mod:`granpack.mixture`), a random orientation and
-   their circumscribed sphere (the shell); the shells are deposited one by one
+1. the deposit: grains get their population (shuffled, :mod:`granpack.mixture`), a random
+   orientation and their circumscribed sphere (the shell); the shells are deposited one by one
    (:mod:`granpack.deposit`, lateral walls or periodic as configured); the walls then give way to
    the periodic cell (the centres are already inside it);
-2. the grains replace the shells, at rest, and the Moreau–Jean scheme (:mod:`granpack.nscd`)
-   advances them under gravity until the equilibrium criteria (docs: Method > Equilibrium,
-   :mod:`granpack.equilibrium`) hold at ``window`` consecutive checks (one every
-   ``check_interval``), or until ``max_time``: the run then ends with status ``"not at rest"``
-   and its figures, not an error.
+2. the settling (:mod:`granpack.settling`): the grains replace the shells, at rest, and Moreau–Jean
+   steps advance them under gravity through the phases collapse, end game, settle and certify,
+   until the equilibrium criteria (docs: Method > Equilibrium) hold at ``equilibrium.window``
+   consecutive checks, or until ``equilibrium.max_time``: the run then ends with status
+   ``"not at rest"`` and its figures, not an error.
 
-NLGS tolerance. While the pile is far from rest (kinetic criterion above
-``solver.tolerance_below``, 1e-5) the contact problems are solved to ``solver.settling_tolerance``
-(1e-3); from the first check below that level on, to ``solver.tolerance``, and only checks made
-with it count towards the equilibrium window, since the force criteria need converged forces.
-Switching at the start of the end game instead (kinetic 1e-3) cost 600-1500 sweeps per step while
-the collapsed pile still moved, and brought the demo pile to rest later (t = 57.75 against 42.75).
-
-End game. Once the kinetic criterion falls below ``solver.damping_below`` (the collapse is over),
-with ``solver.end_game = "damping"`` every step but the checked ones scales the velocities by
-``exp(-damping_rate h)`` (:mod:`granpack.nscd.integrator`). Frictionless grains swinging on closed contacts dissipate nothing, and an
-undamped pile keeps a steady level of small motions long after it has collapsed; the damping
-vanishes at rest, so it changes how fast the pile gets to its static equilibrium, not which
-forces hold it there. The criteria are evaluated on undamped steps: a grain creeping at the
-terminal speed ``v`` of the drag shows its unbalanced force ``γ m v`` there, and its kinetic energy.
-
-Overlap correction. The post-step projection of :mod:`granpack.nscd.integrator` removes overlaps
-above ``solver.overlap_slop`` (``solver.pour_overlap_slop`` if smaller while grains move fast, the
-alert distance raised, see below); the velocity-level law alone never pushes an overlap back.
-
-Alert distance and substeps: the step policy of :mod:`granpack.nscd.step_policy`
-(:func:`~granpack.nscd.step_policy.step_alert`, :func:`~granpack.nscd.step_policy.step_reach`).
+Around the settling, observers: the progress display (:mod:`granpack.progress`), the trajectory
+frames and the checkpoints (here), Ctrl-C (a checkpoint, then :class:`~granpack.errors.RunInterrupted`).
+The rules of the run folder are :mod:`granpack.io.run_folder`'s; what a run measures is
+:mod:`granpack.run_record`'s.
 
 Outputs in ``out_dir`` (written to a temporary name and renamed, but for the trajectory, which
-grows frame by frame and is cut back to the checkpoint on resume):
-``config.toml`` (resolved), ``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at
-the end), ``trajectory.gsd`` (a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``,
-``summary.json`` and ``timeline.csv`` (one row per equilibrium check: :data:`TIMELINE_COLUMNS`).
-A killed run resumed with ``resume=True`` continues from its checkpoint
-and ends with the same packing, bit for bit, as an uninterrupted run: the checkpoint holds the
-exact double-precision state, the contacts that warm-start the next step, and the loop counters.
+grows frame by frame and is cut back to the checkpoint on resume): ``config.toml`` (resolved),
+``checkpoint.gsd`` (every ``output.checkpoint_interval``; removed at the end), ``trajectory.gsd``
+(a frame every ``output.snapshot_interval`` if > 0), ``final.gsd``, ``summary.json`` and
+``timeline.csv`` (one row per equilibrium check: :data:`~granpack.run_record.TIMELINE_COLUMNS`).
+A killed run resumed with ``resume=True`` continues from its checkpoint and ends with the same
+packing, bit for bit, as an uninterrupted run: the checkpoint holds the exact double-precision
+state, the contacts that warm-start the next step, and the run's record.
 """
 
 from __future__ import annotations
@@ -50,16 +33,14 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from granpack.box import Box
 from granpack.config import RunConfig
-from granpack.contact import ContactSet, Detector
+from granpack.contact import ContactSet
 from granpack.deposit import deposit
-from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
 from granpack.errors import InputError, RunInterrupted
 from granpack.io.atomic import write_text_atomic
 from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
@@ -75,93 +56,14 @@ from granpack.io.run_folder import (
     claim_folder,
 )
 from granpack.mixture import Mixture
-from granpack.nscd import StepParameters, advance, kinetic_energy, potential_energy, predict
-from granpack.nscd.step_policy import step_alert, step_reach
-from granpack.packing import Packing
+from granpack.nscd import kinetic_energy
 from granpack.progress import Interrupt, Lines, Notes, SettlingProgress, progress_mode
 from granpack.rotations import random_quaternions
+from granpack.run_record import Clock, RunRecord, timeline_csv
+from granpack.settling import STATUS_AT_REST, STATUS_NOT_AT_REST, Settling
 from granpack.state import ParticleState
 
-__all__ = ["run_packing", "initial_state", "step_parameters", "criteria_of", "step_alert",
-           "STATUS_AT_REST", "STATUS_NOT_AT_REST", "CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE",
-           "SUMMARY_FILE", "TRAJECTORY_FILE", "PROGRESS_FILE"]
-
-STATUS_AT_REST = "equilibrium"
-STATUS_NOT_AT_REST = "not at rest"
-#: columns of ``timeline.csv``, one row per equilibrium check; counts and sums over the interval
-#: since the previous check, figures of the equilibrium test at the check
-TIMELINE_COLUMNS = (
-    "time", "step", "kinetic_energy_total", "potential_energy_change", "kinetic_criterion", "max_net_force", "max_net_torque",
-    "wall_force_over_weight", "nlgs_tolerance", "mean_sweeps", "max_sweeps", "unconverged_steps",
-    "corrected_steps", "correction_sweeps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
-    "wall_seconds", "cpu_seconds",
-)
-
-_OVERLAP_COLUMN = TIMELINE_COLUMNS.index("max_overlap")
-
-#: Verlet skin of the broad phase, as a fraction of the smallest grain size
-_SKIN_FRACTION = 0.1
-
-
-@dataclass
-class _Counters:
-    """Loop state that a checkpoint carries (everything but the particles and contacts)."""
-
-    step: int = 0
-    passes: int = 0  # consecutive equilibrium checks passed
-    near_rest: bool = False  # the fine NLGS tolerance is in use (once set, for good)
-    iterations_total: int = 0
-    iterations_max: int = 0
-    interval_max_sweeps: int = 0  # most sweeps of a step since the last check
-    unconverged_steps: int = 0
-    point_updates: int = 0
-    max_overlap: float = 0.0
-    correction_steps: int = 0
-    correction_iterations: int = 0  # NLGS sweeps of the position corrections
-    correction_energy: float = 0.0
-    end_game: bool = False  # the end game's damping has started (once set, for good)
-    rest_recovery_from: float | None = None  # simulated time the slow overlap recovery started (for good)
-    shakes: int = 0  # shakes given (solver.shake_speed)
-    last_shake: float | None = None  # simulated time of the last shake, sqrt(d/g)
-    last_step: float = 0.0  # the (sub)step of the last solve, sqrt(d/g) (0: none yet)
-    damped_energy: float = 0.0
-    split_steps: int = 0  # steps split into substeps (alert distance above the cell's ceiling)
-    solves: int = 0  # NLGS velocity solves (one per step, k per split step)
-    detection_seconds: float = 0.0
-    solver_seconds: float = 0.0
-    deposit_seconds: float = 0.0
-    initial_order: dict = field(default_factory=dict)  # Q00, Q22 of the deposit before gravity acts
-    wall_seconds: float = 0.0
-    cpu_seconds: float = 0.0  # process CPU time of the settling (all threads)
-    last_report: dict = field(default_factory=dict)
-    timeline: list = field(default_factory=list)  # one row per equilibrium check, TIMELINE_COLUMNS
-
-    def as_dict(self) -> dict:
-        """The counters for a checkpoint's JSON metadata: the timeline's NaN and infinities as the
-        strings ``"nan"``, ``"inf"``, ``"-inf"`` (JSON would make them ``null``)."""
-        saved = dict(self.__dict__)
-        saved["timeline"] = [[v if not isinstance(v, float) or math.isfinite(v) else repr(v) for v in row]
-                             for row in self.timeline]
-        return saved
-
-
-def step_parameters(config: RunConfig) -> StepParameters:
-    """The NSCD settings of a run config."""
-    s = config.solver
-    return StepParameters(
-        time_step=s.time_step, theta=s.theta, friction=s.friction, restitution=s.restitution,
-        tolerance=s.tolerance, max_iterations=s.max_iterations, check_every=s.check_every,
-        alert=config.resolved_alert_distance, overlap_slop=s.overlap_slop,
-        recovery_slop=s.recovery_slop, recovery_rate=s.recovery_rate, recovery_speed=s.recovery_speed,
-        parallel_points=s.parallel_points if s.parallel_points > 0 else 2**62, nncg=s.acceleration == "nncg",
-    )
-
-
-def criteria_of(config: RunConfig) -> EquilibriumCriteria:
-    """The equilibrium tolerances of a run config."""
-    e = config.equilibrium
-    return EquilibriumCriteria(force=e.force_tolerance, torque=e.torque_tolerance,
-                               kinetic_energy=e.kinetic_tolerance, wall=e.wall_tolerance)
+__all__ = ["run_packing", "initial_state", "deposit_order", "STATUS_AT_REST", "STATUS_NOT_AT_REST"]
 
 
 def deposit_order(state: ParticleState) -> dict:
@@ -197,14 +99,6 @@ def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleSt
     return state, mixture
 
 
-def _packing(state: ParticleState, contacts: ContactSet, config: RunConfig, mixture: Mixture, metadata: dict) -> Packing:
-    from granpack import __version__
-
-    meta = {"seed": config.seed, "version": __version__, "config": config.to_toml(), **metadata}
-    return Packing(state=state, contacts=contacts, time_step=config.solver.time_step,
-                   population_names=mixture.names, metadata=meta)
-
-
 def _same_config(saved_text: str | None, config: RunConfig) -> bool:
     """Whether a checkpoint's resolved config is ``config``: the same settings, whatever the
     comments of the version that wrote it (the descriptions of the keys)."""
@@ -220,8 +114,8 @@ def _same_config(saved_text: str | None, config: RunConfig) -> bool:
         return False
 
 
-def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, _Counters] | None:
-    """State, warm contacts and counters of the checkpoint in ``out_dir``, or None if there is none."""
+def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, RunRecord] | None:
+    """State, warm contacts and record of the checkpoint in ``out_dir``, or None if there is none."""
     path = out_dir / CHECKPOINT_FILE
     if not path.is_file():
         return None
@@ -234,25 +128,39 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[Pa
     state = ParticleState(box=Box.square(config.lateral_size), shapes=mixture.particle_shape_table(), kind=s.kind,
                           population=s.population, position=s.position, quaternion=s.quaternion,
                           velocity=s.velocity, omega=s.omega, time=s.time)
-    counters = _Counters(**meta["counters"])
-    # non-finite values come back from their strings; a checkpoint of an older version wrote null
-    counters.timeline = [_current_layout([math.nan if v is None else float(v) if isinstance(v, str) else v for v in row])
-                         for row in counters.timeline]
-    return state, saved.contacts, counters
+    try:
+        record = RunRecord.from_dict(meta["counters"])
+    except (KeyError, TypeError) as exc:
+        raise InputError(f"{path}: not a checkpoint this version reads ({exc}); replace the run with --overwrite") from None
+    return state, saved.contacts, record
 
 
-_POTENTIAL_COLUMN = TIMELINE_COLUMNS.index("potential_energy_change")
-#: length of a timeline row in checkpoints written before the potential energy was recorded:
-#: the other columns, then seven running totals
-_ROW_WITHOUT_POTENTIAL = len(TIMELINE_COLUMNS) - 1 + 7
+class _Checkpoints:
+    """Observer: a checkpoint every ``output.checkpoint_interval``, trajectory frames every
+    ``output.snapshot_interval``, and on Ctrl-C a checkpoint of the step just made, then
+    :class:`RunInterrupted`."""
 
+    def __init__(self, out_dir: Path, config: RunConfig, interrupt: Interrupt, note: Notes):
+        h = config.time_stepping.time_step
+        self.out_dir, self.interrupt, self.note = out_dir, interrupt, note
+        self.checkpoint_every = max(1, int(round(config.output.checkpoint_interval / h)))
+        snapshot = config.output.snapshot_interval
+        self.snapshot_every = int(round(snapshot / h)) if snapshot > 0 else 0
 
-def _current_layout(row: list) -> list:
-    """A checkpoint's timeline row in today's layout: a row written before ``potential_energy_change``
-    existed gets NaN for it and for its running total, so that such a run resumes."""
-    if len(row) != _ROW_WITHOUT_POTENTIAL:
-        return row
-    return [*row[:_POTENTIAL_COLUMN], math.nan, *row[_POTENTIAL_COLUMN:], math.nan]
+    def checked(self, run: Settling) -> None:
+        for line in run.notes:
+            self.note(line)
+
+    def stepped(self, run: Settling) -> None:
+        step = run.record.milestones.step
+        if self.snapshot_every and step % self.snapshot_every == 0:
+            append_frame(self.out_dir / TRAJECTORY_FILE, run.packing({"status": "settling"}))
+        due = step % self.checkpoint_every == 0
+        if due or self.interrupt.requested:
+            run.record.clock.stamp(cpu=False)
+            write_packing(self.out_dir / CHECKPOINT_FILE, run.packing({"counters": run.record.as_dict()}))
+        if self.interrupt.requested:  # Ctrl-C: stop here, the checkpoint of this step written
+            raise RunInterrupted(self.out_dir / CHECKPOINT_FILE, run.state.time, step)
 
 
 def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, overwrite: bool = False,
@@ -319,215 +227,43 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
              lines_only=True)
         state, mixture = initial_state(config, progress=mode == "bar")
-        counters = _Counters(deposit_seconds=time.perf_counter() - t0, initial_order=deposit_order(state))
-        note(f"poured in {counters.deposit_seconds:.0f} s; settling", lines_only=True)
+        record = RunRecord(clock=Clock(deposit_seconds=time.perf_counter() - t0), initial_order=deposit_order(state))
+        note(f"poured in {record.clock.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None
     else:
-        state, contacts, counters = resumed
-        note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {counters.step}) of {out_dir / CHECKPOINT_FILE}")
-        truncate_frames(out_dir / TRAJECTORY_FILE, counters.step)
-    wall_before = counters.wall_seconds
-    cpu_before, cpu_start = counters.cpu_seconds, time.process_time()
+        state, contacts, record = resumed
+        note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {record.milestones.step}) of {out_dir / CHECKPOINT_FILE}")
+        truncate_frames(out_dir / TRAJECTORY_FILE, record.milestones.step)
+    record.clock.start(wall_start)
 
-    params = step_parameters(config)
-    settling_tolerance = config.solver.settling_tolerance
-    pour_slop = config.solver.pour_overlap_slop
-    criteria = criteria_of(config)
+    run = Settling(config, mixture, state, contacts, record)
     eq = config.equilibrium
-    h = params.time_step
-    d_min = 2.0 * float(state.shapes.radius.min())
-    d_max = 2.0 * float(state.shapes.radius.max())
-    room = 0.5 * config.lateral_size - d_max - 1e-9  # one periodic image per pair: alert + skin < room
-    skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - params.alert)))
-    ceiling = max(params.alert, room - skin)
-    detector = Detector(skin=skin)
-    n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
-    check_every = max(1, int(round(eq.check_interval / h)))
-    checkpoint_every = max(1, int(round(config.output.checkpoint_interval / h)))
-    snapshot_every = int(round(config.output.snapshot_interval / h)) if config.output.snapshot_interval > 0 else 0
-    report: EquilibriumReport | None = None
-    status = STATUS_NOT_AT_REST
-
-    def packing_now(extra: dict) -> Packing:
-        packing = _packing(state, contacts if contacts is not None else ContactSet.empty(), config, mixture,
-                           {"step": counters.step, "time": state.time, **extra})
-        return replace(packing, time_step=step_h)  # the contacts' impulses are over the last (sub)step
-
-    step_h = h
-
-    bar = SettlingProgress(mode, eq.max_time, h, write)
+    bar = SettlingProgress(mode, eq.max_time, config.time_stepping.time_step, write)
     interrupt = Interrupt()
     with bar, interrupt:
-        while counters.step < n_steps_max:
-            alert, substeps = step_alert(state, params.alert, h, ceiling, config.solver.max_rotation)
-            reach = step_reach(state, params.alert, h, substeps, contacts) if alert > params.alert else None
-            tolerance = params.tolerance if counters.near_rest else max(params.tolerance, settling_tolerance)
-            if alert == params.alert:
-                slop = params.overlap_slop
-            elif counters.step % config.solver.pour_correction_interval == 0:
-                slop = min(params.overlap_slop, pour_slop)
-            else:
-                slop = 0.0  # no correction on this step of the pour
-            step_h = h / substeps
-            checking = (counters.step + 1) % check_every == 0
-            damping = config.solver.damping_rate if counters.end_game and not checking else 0.0
-            step_params = replace(params, alert=alert, tolerance=tolerance, overlap_slop=slop, time_step=step_h,
-                                  damping=damping)
-            if counters.rest_recovery_from is not None:
-                step_params = replace(step_params, slow_recovery_slop=config.solver.rest_recovery_slop,
-                                      slow_recovery_speed=config.solver.rest_recovery_speed)
-            for _ in range(substeps):
-                prediction = predict(state, step_params)
-                t0 = time.perf_counter()
-                detected = detector.detect(prediction.state, alert, previous=contacts, reach=reach)
-                t1 = time.perf_counter()
-                contacts, info = advance(state, prediction, detected, step_params, contacts, t1 - t0,
-                                         warm_time_step=counters.last_step or None)
-                counters.last_step = step_h
-                counters.solves += 1
-                counters.iterations_total += info.iterations
-                counters.iterations_max = max(counters.iterations_max, info.iterations)
-                counters.interval_max_sweeps = max(counters.interval_max_sweeps, info.iterations)
-                counters.unconverged_steps += 0 if info.converged else 1
-                counters.point_updates += info.iterations * info.n_points
-                counters.max_overlap = max(counters.max_overlap, info.max_overlap)
-                counters.correction_steps += 1 if info.correction_iterations else 0
-                counters.correction_iterations += info.correction_iterations
-                counters.correction_energy += info.correction_energy
-                counters.damped_energy += info.damped_energy
-                counters.detection_seconds += info.detection_seconds
-                counters.solver_seconds += info.solver_seconds
-            counters.step += 1
-            counters.split_steps += 1 if substeps > 1 else 0
-            bar.tick(state.time)
-
-            if counters.step % check_every == 0:
-                report = check_equilibrium(state, contacts, step_h, criteria=criteria)
-                counters.passes = counters.passes + 1 if report.passed and counters.near_rest else 0
-                counters.end_game = counters.end_game or (
-                    config.solver.end_game == "damping" and report.kinetic_energy < config.solver.damping_below)
-                counters.near_rest = counters.near_rest or report.kinetic_energy < config.solver.tolerance_below
-                if _shake_due(config, counters, report, state.time):
-                    shake(state, config.solver.shake_speed, np.random.default_rng([config.seed, counters.shakes]))
-                    counters.shakes += 1
-                    counters.last_shake = state.time
-                counters.wall_seconds = wall_before + time.perf_counter() - wall_start
-                counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
-                _timeline_row(counters, state, contacts, report, tolerance)
-                counters.last_report = report.as_dict()
-                bar.update(state.time, kinetic_energy(state), contacts.n_manifolds, report, counters.passes, eq.window,
-                           counters.timeline[-1][_OVERLAP_COLUMN])
-                if counters.passes >= eq.window:
-                    if not _rest_recovery_due(config, counters, contacts):
-                        status = STATUS_AT_REST
-                        break
-                    counters.rest_recovery_from = state.time
-                    counters.passes = 0
-                    note(f"at rest at t = {state.time:.6g} sqrt(d/g) with overlaps up to "
-                         f"{-contacts.gap.min():.2g} d: pushing them back to {config.solver.rest_recovery_slop:g} d "
-                         f"(at most {config.solver.rest_recovery_speed:g} sqrt(g d)), then checking again")
-            if snapshot_every and counters.step % snapshot_every == 0:
-                append_frame(out_dir / TRAJECTORY_FILE, packing_now({"status": "settling"}))
-            if counters.step % checkpoint_every == 0:
-                counters.wall_seconds = wall_before + time.perf_counter() - wall_start
-                write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
-            if interrupt.requested:  # Ctrl-C: stop here, the checkpoint of this step written
-                if counters.step % checkpoint_every != 0:
-                    counters.wall_seconds = wall_before + time.perf_counter() - wall_start
-                    write_packing(out_dir / CHECKPOINT_FILE, packing_now({"counters": counters.as_dict()}))
-                raise RunInterrupted(out_dir / CHECKPOINT_FILE, state.time, counters.step)
-
-    if report is None or counters.step % check_every != 0:
-        report = check_equilibrium(state, contacts if contacts is not None else ContactSet.empty(), step_h,
-                                   criteria=criteria)
-        counters.last_report = report.as_dict()
-    counters.wall_seconds = wall_before + time.perf_counter() - wall_start
-    counters.cpu_seconds = cpu_before + time.process_time() - cpu_start
-    summary = _summary(config, state, contacts, counters, report, status)
-    write_packing(out_dir / FINAL_FILE, packing_now({"status": status, "summary": _headline(summary)}))
+        status = run.run((bar, _Checkpoints(out_dir, config, interrupt, note)))
+    record.clock.stamp()
+    summary = _summary(config, run, status)
+    write_packing(out_dir / FINAL_FILE, run.packing({"status": status, "summary": _headline(summary)}))
     write_json(out_dir / SUMMARY_FILE, summary)
-    write_text_atomic(out_dir / TIMELINE_FILE, _timeline_csv(counters.timeline))
+    write_text_atomic(out_dir / TIMELINE_FILE, timeline_csv(record.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
-    note(f"{status} at t = {state.time:.6g} sqrt(d/g) after {counters.wall_seconds:.0f} s: "
-         f"largest net force {report.max_net_force:.3g} d^2 P", lines_only=True)
+    note(f"{status} at t = {state.time:.6g} sqrt(d/g) after {record.clock.wall_seconds:.0f} s: "
+         f"largest net force {run.report.max_net_force:.3g} d^2 P", lines_only=True)
     return summary
-
-
-def _rest_recovery_due(config: RunConfig, c: _Counters, contacts: ContactSet) -> bool:
-    """Whether a pile that has just met the criteria starts the slow overlap recovery instead of
-    ending: once per run, when it is on (``solver.rest_recovery_speed > 0``) and some overlap is
-    deeper than ``solver.rest_recovery_slop``.
-
-    Why: a pile comes to rest with its loaded contacts overlapping by up to the fast recovery's
-    slop, deepest where the load is largest, and the overlaps weighted by their forces make k (the
-    relative overestimate of the solid fraction). Pushed back at a speed far below that of the
-    settling, they shrink to the slow slop while the pile stays quasi-static; the window then
-    starts again, so the packing written is one at rest with the small overlaps.
-    """
-    s = config.solver
-    return (c.rest_recovery_from is None and s.rest_recovery_speed > 0 and s.recovery_rate > 0
-            and contacts.n_points > 0 and float(-contacts.gap.min()) > s.rest_recovery_slop)
-
-
-def _shake_due(config: RunConfig, c: _Counters, report: EquilibriumReport, time_now: float) -> bool:
-    """Whether this check shakes the pile: shakes on, the fine tolerance in use, the kinetic criterion
-    below ``solver.shake_below``, ``solver.shake_interval`` past the last shake, and the check failed
-    (a pile that meets the criteria is counting its window towards rest: a shake would restart it)."""
-    s = config.solver
-    return (s.shake_speed > 0 and c.near_rest and not report.passed and report.kinetic_energy < s.shake_below
-            and (c.last_shake is None or time_now - c.last_shake >= s.shake_interval - 1e-9))
-
-
-def shake(state: ParticleState, speed: float, rng: np.random.Generator) -> None:
-    """Add ``speed`` (sqrt(g d)) in a random direction (uniform on the sphere) to every grain's velocity.
-
-    Why: a frictionless pile near rest holds grains by contacts that carry almost no force; such a
-    grain leaves its contact and slides to the next one tens of sqrt(d/g) later, setting off a burst
-    of rearrangements (docs/design-notes.md, Settling to rest). A small kick makes those grains leave
-    at once, while the grains held firmly return to rest within a few sqrt(d/g) under the end game's
-    damping.
-    """
-    direction = rng.normal(size=(state.n, 3))
-    direction /= np.linalg.norm(direction, axis=1)[:, None]
-    state.velocity += speed * direction
-
-
-def _timeline_row(c: _Counters, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
-                  tolerance: float) -> None:
-    """Append the row of this check to ``c.timeline`` (interval sums from the previous row's totals)."""
-    totals = (c.solves, c.iterations_total, c.unconverged_steps, c.correction_steps, c.correction_iterations,
-              c.correction_energy, c.damped_energy, potential_energy(state))
-    # the first check has no previous potential energy: its change is NaN
-    previous = c.timeline[-1][len(TIMELINE_COLUMNS):] if c.timeline else (0,) * (len(totals) - 1) + (math.nan,)
-    d = [a - b for a, b in zip(totals, previous)]
-    gaps = contacts.gap
-    c.timeline.append([
-        state.time, c.step, kinetic_energy(state), d[7], report.kinetic_energy, report.max_net_force,
-        report.max_net_torque, report.wall_force_over_weight, tolerance, d[1] / max(d[0], 1), c.interval_max_sweeps,
-        d[2], d[3], d[4] / max(d[0], 1), d[5], d[6], contacts.n_manifolds, contacts.n_points,
-        float(max(0.0, -gaps.min())) if len(gaps) else 0.0, c.wall_seconds, c.cpu_seconds, *totals,
-    ])
-    c.interval_max_sweeps = 0
-
-
-def _timeline_csv(rows: list) -> str:
-    """``timeline.csv``: a header and one line per check (the running totals kept in the rows dropped)."""
-    lines = [",".join(TIMELINE_COLUMNS)]
-    for row in rows:
-        lines.append(",".join(f"{v:.6g}" if isinstance(v, float) else str(v) for v in row[:len(TIMELINE_COLUMNS)]))
-    return "\n".join(lines) + "\n"
 
 
 def _headline(summary: dict) -> dict:
     return {k: summary[k] for k in ("status", "steps", "simulated_time", "wall_time")}
 
 
-def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | None, c: _Counters,
-             report: EquilibriumReport, status: str) -> dict:
+def _summary(config: RunConfig, run: Settling, status: str) -> dict:
     from granpack import __version__
     from granpack._numba import thread_count, threading_layer
 
-    steps = max(c.step, 1)
+    state, contacts, report = run.state, run.contacts, run.report
+    t, m, clock = run.record.totals, run.record.milestones, run.record.clock
+    steps = max(m.step, 1)
     n_points = contacts.n_points if contacts is not None else 0
     gaps = contacts.gap if contacts is not None and n_points else np.zeros(0)
     return {
@@ -535,32 +271,32 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
         "status": status,
         "seed": config.seed,
         "n_particles": state.n,
-        "steps": c.step,
+        "steps": m.step,
         "simulated_time": state.time,
-        "time_step": config.solver.time_step,
-        "wall_time": c.wall_seconds,
-        "cpu_time": c.cpu_seconds,
+        "time_step": config.time_stepping.time_step,
+        "wall_time": clock.wall_seconds,
+        "cpu_time": clock.cpu_seconds,
         "threads": {"numba": thread_count(), "layer": threading_layer()},
-        "initial_order": dict(c.initial_order),
+        "initial_order": dict(run.record.initial_order),
         "timing": {
-            "deposit_seconds": c.deposit_seconds,
-            "detection_seconds": c.detection_seconds,
-            "solver_seconds": c.solver_seconds,
-            "detection_ms_per_step": 1e3 * c.detection_seconds / steps,
-            "solver_ms_per_step": 1e3 * c.solver_seconds / steps,
-            "point_updates_per_second": c.point_updates / c.solver_seconds if c.solver_seconds > 0 else None,
+            "deposit_seconds": clock.deposit_seconds,
+            "detection_seconds": t.detection_seconds,
+            "solver_seconds": t.solver_seconds,
+            "detection_ms_per_step": 1e3 * t.detection_seconds / steps,
+            "solver_ms_per_step": 1e3 * t.solver_seconds / steps,
+            "point_updates_per_second": t.point_updates / t.solver_seconds if t.solver_seconds > 0 else None,
         },
         "nlgs": {
-            "mean_iterations": c.iterations_total / max(c.solves, 1),
-            "max_iterations": c.iterations_max,
-            "unconverged_steps": c.unconverged_steps,
-            "solves": c.solves,
+            "mean_iterations": t.iterations_total / max(t.solves, 1),
+            "max_iterations": t.iterations_max,
+            "unconverged_steps": t.unconverged_steps,
+            "solves": t.solves,
             "tolerance": config.solver.tolerance,
         },
-        "split_steps": c.split_steps,
-        "position_correction": {"steps": c.correction_steps, "potential_energy_added": c.correction_energy},
-        "end_game": {"mode": config.solver.end_game, "started": c.end_game, "kinetic_energy_removed": c.damped_energy,
-                     "shakes": c.shakes, "rest_recovery_from": c.rest_recovery_from},
+        "split_steps": t.split_steps,
+        "position_correction": {"steps": t.correction_steps, "potential_energy_added": t.correction_energy},
+        "end_game": {"mode": config.end_game.mode, "started": m.end_game, "kinetic_energy_removed": t.damped_energy,
+                     "shakes": m.shakes, "rest_recovery_from": m.rest_recovery_from},
         "equilibrium": report.as_dict(),
         "final": {  # the last state; total kinetic energy in rho g d^4 (the per-grain criterion: "equilibrium")
             "total_kinetic_energy": kinetic_energy(state),
@@ -569,8 +305,5 @@ def _summary(config: RunConfig, state: ParticleState, contacts: ContactSet | Non
             "max_overlap": float(max(0.0, -gaps.min())) if len(gaps) else 0.0,
             "height": float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0,
         },
-        "max_overlap_during_run": c.max_overlap,
+        "max_overlap_during_run": t.max_overlap,
     }
-
-
-

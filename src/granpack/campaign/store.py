@@ -119,9 +119,21 @@ def write_task(run_dir: Path, run: RunSpec) -> None:
 
 
 def task_matches(run_dir: Path, run: RunSpec) -> bool:
-    """Whether ``run_dir/task.json`` records exactly this run's config (JSON round trip)."""
+    """Whether ``run_dir/task.json`` records this run's config: the same keys (JSON round trip), or
+    the same settings written otherwise (a default written out, the flat ``[solver]`` layout of
+    granpack 0.1.0)."""
+    from granpack.config import load_config_dict
+    from granpack.errors import InputError
+
     task = read_task(run_dir)
-    return task is not None and task.get("config") == json.loads(json.dumps(run.config))
+    if task is None:
+        return False
+    if task.get("config") == json.loads(json.dumps(run.config)):
+        return True
+    try:
+        return load_config_dict(task.get("config")) == load_config_dict(run.config)
+    except InputError:
+        return False
 
 
 def write_error(run_dir: Path, message: str) -> None:

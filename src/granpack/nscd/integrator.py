@@ -38,7 +38,7 @@ docs' design notes):
   velocity solve then needed far more sweeps at rest;
 - at most ``correction_sweeps`` NLGS sweeps: a partial correction is completed at the next steps.
 
-End-game damping (:mod:`granpack.simulation` decides when): with ``damping`` γ > 0 every velocity
+End-game damping (:mod:`granpack.settling` decides when): with ``damping`` γ > 0 every velocity
 is scaled by ``e^{-γ h}`` after the update, and the kinetic energy removed is reported
 (``StepInfo.damped_energy``).
 
@@ -60,9 +60,10 @@ import time
 from dataclasses import dataclass, replace
 
 
-from granpack._numba import thread_count
 import numpy as np
 
+from granpack._numba import thread_count
+from granpack.config import AUTO_ALERT_FRACTION, OverlapConfig, SolverConfig, ThreadsConfig, TimeSteppingConfig
 from granpack.contact.contacts import ContactSet
 from granpack.nscd.nlgs import NLGSOptions, solve
 from granpack.nscd.problem import assemble
@@ -75,10 +76,17 @@ __all__ = ["StepParameters", "StepInfo", "Prediction", "predict", "advance", "st
 #: overlap left by a position correction, as a fraction of the slop (module docstring)
 CORRECTED_OVERLAP = 0.1
 
+# the defaults of a run config (granpack.config declares each setting once)
+_STEPPING, _SOLVER, _OVERLAP, _THREADS = TimeSteppingConfig(), SolverConfig(), OverlapConfig(), ThreadsConfig()
+
 
 @dataclass(frozen=True)
 class StepParameters:
     """Settings of a Moreau–Jean step (units: d, sqrt(d/g)).
+
+    The defaults are those of a run config (:mod:`granpack.config`, where each setting is declared
+    once; ``alert`` the automatic one of grains of size 1 d); a run builds its own with
+    :func:`granpack.settling.step_parameters`.
 
     Attributes:
         time_step: h, sqrt(d/g).
@@ -90,8 +98,7 @@ class StepParameters:
         check_every: sweeps per convergence check.
         alert: detection distance, d.
         overlap_slop: overlap above which positions are corrected (to ``CORRECTED_OVERLAP`` of it), d;
-            ``0`` disables the correction. A run takes it from its config (``solver.overlap_slop``,
-            :func:`granpack.simulation.step_parameters`).
+            ``0`` disables the correction (a run's ``overlap.projection_slop``).
         warm_tolerance: warm-start matching distance, as a fraction of the smallest grain size.
         correction_sweeps: NLGS sweep budget of the position correction (at most
             ``max_iterations``); a partial correction is completed at the next steps.
@@ -103,37 +110,37 @@ class StepParameters:
         slow_recovery_slop, slow_recovery_speed: its slow tier: an overlap deeper than
             ``slow_recovery_slop`` (d) is pushed back at ``recovery_rate`` of that excess per step, at
             most at ``slow_recovery_speed`` (sqrt(g d)); speed 0: none (a pile at rest,
-            :mod:`granpack.simulation`).
+            :mod:`granpack.settling`).
         damping: rate γ of a viscous damping of every grain's velocity after the step,
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
-            :mod:`granpack.simulation`).
+            :mod:`granpack.settling`).
         parallel_points: frictionless problems of at least this many points are swept by two
             threads, the lower and the upper part of the pile at once (:func:`_sides`,
-            :func:`granpack.nscd.nlgs.solve`); the default never does.
+            :func:`granpack.nscd.nlgs.solve`).
         nncg: the velocity solve and the position correction use the NNCG momentum
             (:mod:`granpack.nscd.nlgs`).
     """
 
-    time_step: float = 5e-3
-    theta: float = 0.5
-    friction: float = 0.0
-    restitution: float = 0.0
-    tolerance: float = 1e-4
-    max_iterations: int = 2000
-    check_every: int = 10
-    alert: float = 0.05
-    overlap_slop: float = 5e-4
+    time_step: float = _STEPPING.time_step
+    theta: float = _STEPPING.theta
+    friction: float = _SOLVER.friction
+    restitution: float = _SOLVER.restitution
+    tolerance: float = _SOLVER.tolerance
+    max_iterations: int = _SOLVER.max_iterations
+    check_every: int = _SOLVER.check_every
+    alert: float = AUTO_ALERT_FRACTION
+    overlap_slop: float = _OVERLAP.projection_slop
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
-    recovery_slop: float = 5e-4
-    recovery_rate: float = 0.2
-    recovery_speed: float = 0.05
+    recovery_slop: float = _OVERLAP.recovery_slop
+    recovery_rate: float = _OVERLAP.recovery_rate
+    recovery_speed: float = _OVERLAP.recovery_speed
     slow_recovery_slop: float = 0.0
     slow_recovery_speed: float = 0.0
     damping: float = 0.0
-    parallel_points: int = 2**62
-    nncg: bool = True
+    parallel_points: int = _THREADS.parallel_points
+    nncg: bool = _SOLVER.acceleration == "nncg"
 
     def __post_init__(self):
         if not self.time_step > 0:

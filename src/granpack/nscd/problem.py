@@ -24,7 +24,7 @@ point α (frozen at the predicted configuration of the step)
   an overlap deeper than ``s_r`` is pushed back at a fraction β of its excess per step, at most at
   the speed ``v_r`` (β = 0: none, the plain velocity-level law); its slow tier, ``s_s < s_r`` and
   ``v_s << v_r``, pushes the overlaps between the two slops back at no more than ``v_s`` (``v_s`` 0:
-  none; a pile at rest, :mod:`granpack.simulation`),
+  none; a pile at rest, :mod:`granpack.settling`),
 
 - the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation),
 - the free velocities ``V_free`` ``(N + 1, 6)`` (world rows ``(v, ω^w)``, see

@@ -22,7 +22,7 @@ Rotation per step. The contact law holds the gaps linearised in the velocities; 
 turns by φ in one step moves its surface off that tangent path by up to ``R φ²/2``, an overlap the
 velocity law never saw coming (and a neighbouring face that turns into contact was not in the
 step's manifold at all). Impacts spin thin grains at 30-50 rad/sqrt(d/g), 0.15-0.25 rad per step
-of 5e-3. So a step is also split into at least ``ceil(h max_p |ω_p| sqrt(2 R_p) / solver.max_rotation)``
+of 5e-3. So a step is also split into at least ``ceil(h max_p |ω_p| sqrt(2 R_p) / time_stepping.max_rotation)``
 substeps (R_p in d: the same surface deviation for every size), over the polyhedra that may touch a
 grain or the wall during the step (a sphere's gaps do not depend on its rotation, and a grain in
 free flight has no gap to keep).
