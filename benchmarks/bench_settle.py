@@ -101,7 +101,6 @@ def run_case(name: str, out: Path, max_time: float, seed: int | None, overrides:
     rows = _timeline(run_dir / TIMELINE_FILE)
     one = next((r for r in rows if _level_one(r)), None)
     after = [r for r in rows if one is not None and r["time"] > one["time"]]
-    steps = max(summary["steps"], 1)
     return {
         "case": name,
         "seed": config.seed,
