@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import signal
 import sys
@@ -100,9 +101,47 @@ def _note(message: str) -> None:
 
 
 def _warnings_of(cfg, mixture) -> list[str]:
-    """What `check` and `run` warn of: settings outside their usual range, a pile too short."""
+    """What `check` and `run` warn of: settings outside their usual range, a pile too short, a
+    grading that too few grains represent."""
     column = _column_warning(cfg, mixture)
-    return cfg.advisories() + ([column] if column else [])
+    return cfg.advisories() + _grading_warnings(cfg, mixture) + ([column] if column else [])
+
+
+#: largest gap between the requested and the poured sieve curves that `check` accepts silently
+GRADING_DEVIATION = 0.02
+
+
+def _grading_warnings(cfg, mixture) -> list[str]:
+    """A warning for each graded population whose poured sieve curve strays from the requested one
+    by more than :data:`GRADING_DEVIATION` (too few grains in its coarse fractions), with the grain
+    count that would do (the deviation falls about as 1/N)."""
+    out = []
+    for k, population in enumerate(cfg.populations):
+        if population.grading is None or not mixture.counts[k]:
+            continue
+        deviation = mixture.largest_deviation(k)
+        if deviation > GRADING_DEVIATION:
+            coarse = int((mixture.sizes[k] > population.largest_size / 2).sum())
+            needed = int(math.ceil(cfg.n_particles * deviation / GRADING_DEVIATION / 100.0)) * 100
+            out.append(f"{population.name}: the {mixture.counts[k]} grains follow the requested sieve curve to within "
+                       f"{100 * deviation:.1f} % (largest gap; {coarse} grains above half the largest size carry the "
+                       f"coarse fractions): n_particles about {needed} brings it within {100 * GRADING_DEVIATION:g} %")
+    return out
+
+
+def _sieve_table(mixture, k: int):
+    """The requested and poured sieve curves of graded population ``k`` as a rich table."""
+    from rich.table import Table
+    from rich.text import Text
+
+    population = mixture.populations[k]
+    table = Table(title=Text(f"{population.name}: % passing by volume"),
+                  caption=Text(f"{population.grading.curve} curve; largest gap {100 * mixture.largest_deviation(k):.2f} %"))
+    for heading in ("sieve (d)", "requested", "poured"):
+        table.add_column(heading, justify="right")
+    for row in mixture.sieve_curve(k):
+        table.add_row(f"{row['size']:.4g}", f"{100 * row['requested']:.2f}", f"{100 * row['achieved']:.2f}")
+    return table
 
 
 def _column_warning(cfg, mixture) -> str | None:
@@ -118,7 +157,7 @@ def _column_warning(cfg, mixture) -> str | None:
     from granpack.mixture import PHI_MIXED_SIZES, PHI_ONE_SIZE
 
     d = cfg.largest_size
-    phi = PHI_MIXED_SIZES if len({p.size for p in cfg.populations}) > 1 else PHI_ONE_SIZE
+    phi = PHI_MIXED_SIZES if mixture.has_mixed_sizes else PHI_ONE_SIZE
     height = mixture.pile_height(cfg.lateral_size, phi)
     needed = (opt.n_bottom + opt.n_top + 1.0) * d
     if height >= needed:
@@ -251,6 +290,8 @@ def check(
             "config": str(config), "valid": True, "n_particles": mixture.n_particles,
             "lateral_size": cfg.lateral_size, "seed": cfg.seed, "alert_distance": cfg.resolved_alert_distance,
             "mixture": mixture.table(), "resolved": cfg.model_dump(mode="json"),
+            "sieve_curves": {cfg.populations[k].name: mixture.sieve_curve(k) for k in range(len(cfg.populations))
+                             if cfg.populations[k].grading is not None and mixture.counts[k]},
             "warnings": found,
         })
         return
@@ -260,10 +301,14 @@ def check(
         table.add_column(heading, justify="left" if heading in ("population", "shape") else "right")
     for row in mixture.table():
         aspect = "" if row["aspect"] is None else "{:g}, {:g}".format(*row["aspect"])
-        table.add_row(row["population"], row["shape"], f"{row['size']:.6g}", aspect, str(row["count"]),
+        size = f"{row['size']:.6g}" if row["size"] is not None else f"{row['d_min']:.4g} to {row['d_max']:.4g}"
+        table.add_row(row["population"], row["shape"], size, aspect, str(row["count"]),
                       f"{row['requested_share']:.6f}", f"{row['achieved_share']:.6f}", f"{row['particle_volume']:.6g}")
     console = _console()
     console.print(table)
+    for k, population in enumerate(cfg.populations):
+        if population.grading is not None and mixture.counts[k]:
+            console.print(_sieve_table(mixture, k))
     console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
                   f"alert distance = {cfg.resolved_alert_distance:g} d"
                   f"{'' if cfg.time_stepping.alert_distance is not None else ' (automatic)'}", markup=False)

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, ValidationInfo, field_validator, model_validator
 
 from granpack.errors import InputError
+from granpack.grading import Grading
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Sphere, polyhedron_of_size
 
 __all__ = [
@@ -42,6 +43,7 @@ __all__ = [
     "SETTING_TABLES",
     "MOVED_SOLVER_KEYS",
     "PopulationConfig",
+    "GradingConfig",
     "TimeSteppingConfig",
     "SolverConfig",
     "OverlapConfig",
@@ -79,15 +81,108 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
+def _setting(default: Any, unit: str = "", **field: Any) -> Any:
+    """A config field with its unit (``""``: a pure number or a word), which the reference page and
+    ``granpack check`` print beside the value."""
+    return Field(default=default, json_schema_extra={"unit": unit}, **field)
+
+
+def unit_of(model: type[BaseModel], key: str) -> str:
+    """The unit declared for ``model.key`` (``""`` if none)."""
+    extra = model.model_fields[key].json_schema_extra
+    return extra.get("unit", "") if isinstance(extra, dict) else ""
+
+
+class GradingConfig(_Model):
+    """A continuous size distribution by volume, given instead of one `size`.
+
+    Method: docs/method/grains.md#gradings.
+    """
+
+    curve: Literal["fuller", "sieves", "lognormal"] = _setting(
+        ..., description='"fuller": P(D) = (D^n - d_min^n) / (d_max^n - d_min^n), the Fuller / Talbot curve '
+        '(D / d_max)^n without the fines below d_min; "sieves": a sieve table, interpolated linearly in log D; '
+        '"lognormal": ln D normal by number.')
+    d_min: Optional[_Number] = _setting(None, "d", gt=0, description="Fuller: the smallest grain size.")
+    d_max: Optional[_Number] = _setting(None, "d", gt=0, description="Fuller: the largest grain size.")
+    exponent: Optional[_Number] = _setting(None, gt=0, description="Fuller: the exponent n (0.5: Fuller's "
+                                           "curve of densest packing; 0.3 to 0.7 in mix design).")
+    sieves: Annotated[Optional[tuple[_Number, ...]], Strict(False)] = _setting(
+        None, description="Sieve table: the sieve sizes, increasing, in any one unit (mm, say).")
+    percent_passing: Annotated[Optional[tuple[_Number, ...]], Strict(False)] = _setting(
+        None, "%", description="Sieve table: the cumulative share passing each sieve, % by volume (by mass at "
+        "one density), non-decreasing from 0 to 100.")
+    sieve_unit: Optional[_Number] = _setting(
+        None, gt=0, description="Sieve table: the size, in the unit of `sieves`, of a grain of 1 d; unset: the "
+        "first sieve that 100 % passes (the largest grains are 1 d).")
+    mean: Optional[_Number] = _setting(None, "d", gt=0, description="Lognormal: the mean size by number.")
+    polydispersity: Optional[_Number] = _setting(
+        None, gt=0, description="Lognormal: std / mean of the size by number (before the truncation).")
+    cut: Optional[_Number] = _setting(None, gt=0, description="Lognormal: the truncation, in standard deviations "
+                                      "of ln D each side of its mean; unset: 3.")
+
+    @model_validator(mode="after")
+    def _check_curve(self) -> "GradingConfig":
+        given = {k for k in ("d_min", "d_max", "exponent", "sieves", "percent_passing", "sieve_unit", "mean",
+                             "polydispersity", "cut") if getattr(self, k) is not None}
+        needed = {"fuller": {"d_min", "d_max", "exponent"}, "sieves": {"sieves", "percent_passing"},
+                  "lognormal": {"mean", "polydispersity"}}[self.curve]
+        allowed = needed | {"sieves": {"sieve_unit"}, "lognormal": {"cut"}}.get(self.curve, set())
+        if needed - given:
+            raise ValueError(f"curve '{self.curve}' needs {', '.join(sorted(needed - given))}")
+        if given - allowed:
+            raise ValueError(f"{', '.join(sorted(given - allowed))}: not a key of curve '{self.curve}' "
+                             f"(it takes {', '.join(sorted(allowed))})")
+        if self.curve == "fuller" and not self.d_min < self.d_max:
+            raise ValueError(f"d_min must be below d_max (got {self.d_min:g} and {self.d_max:g})")
+        if self.curve == "sieves":
+            sizes, shares = self.sieves, self.percent_passing
+            if len(sizes) != len(shares) or len(sizes) < 2:
+                raise ValueError(f"sieves and percent_passing must be two lists of the same length, at least 2 "
+                                 f"(got {len(sizes)} and {len(shares)})")
+            if not all(a > 0 for a in sizes) or not all(a < b for a, b in zip(sizes, sizes[1:])):
+                raise ValueError("sieves must be sizes > 0 in increasing order")
+            if not all(a <= b for a, b in zip(shares, shares[1:])):
+                raise ValueError("percent_passing must not decrease from one sieve to the next")
+            if shares[0] != 0 or shares[-1] != 100:
+                raise ValueError(f"percent_passing must go from 0 at the first sieve to 100 at the last (got "
+                                 f"{shares[0]:g} ... {shares[-1]:g})")
+        return self
+
+    def make_grading(self) -> Grading:
+        """The distribution, sizes in d."""
+        if self.curve == "fuller":
+            return Grading.fuller(self.d_min, self.d_max, self.exponent)
+        if self.curve == "lognormal":
+            return Grading.lognormal(self.mean, self.polydispersity, 3.0 if self.cut is None else self.cut)
+        full = next(size for size, share in zip(self.sieves, self.percent_passing) if share >= 100)
+        unit = self.sieve_unit if self.sieve_unit is not None else full
+        return Grading.sieve_table([size / unit for size in self.sieves], [share / 100 for share in self.percent_passing])
+
+    def label(self) -> str:
+        """A short name of the curve, for derived population names."""
+        g = self.make_grading()
+        if self.curve == "fuller":
+            return f"fuller{self.exponent:g}-{g.d_min:g}-{g.d_max:g}"
+        if self.curve == "lognormal":
+            return f"lognormal{self.polydispersity:g}-{self.mean:g}"
+        return f"sieves-{g.d_min:.3g}-{g.d_max:.3g}"
+
+
 class PopulationConfig(_Model):
     """One grain population: a shape at one size and its share of the solid volume."""
 
     shape: Literal["sphere", "pinacoid", "polyhedron"] = Field(
         description='Grain shape: "sphere", "pinacoid" or "polyhedron" (then give vertices).'
     )
-    size: _Number = Field(
+    size: Annotated[Optional[_Number], Field(validate_default=True)] = Field(
+        default=None,
         gt=0,
-        description="Circumscribed diameter, d: the sphere diameter, sqrt(L^2 + G^2) for a pinacoid.",
+        description="Circumscribed diameter, d: the sphere diameter, sqrt(L^2 + G^2) for a pinacoid; required "
+        "unless `grading` gives a distribution of sizes.",
+    )
+    grading: Annotated[Optional[GradingConfig], Field(validate_default=True)] = Field(
+        default=None, description="A distribution of sizes instead of `size` ([populations.grading] table)."
     )
     volume_fraction: _Number = Field(
         ge=0, le=1, description="Share of the total solid volume; the shares of all populations sum to 1."
@@ -149,39 +244,52 @@ class PopulationConfig(_Model):
                     f"must be 1 to 64 letters, digits, spaces, '_', '.', '+' or '-', not starting with a space (got {name!r})"
                 )
             return name
-        shape, size = info.data.get("shape"), info.data.get("size")
-        if shape is None or size is None:
+        shape, size, grading = info.data.get("shape"), info.data.get("size"), info.data.get("grading")
+        if shape is None or (size is None and grading is None):
             return None  # another field is invalid and is reported instead
-        derived = f"{shape}-{size:g}"
+        derived = f"{shape}-{size:g}" if size is not None else f"{shape}-{grading.label()}"
         aspect = info.data.get("aspect")
         if shape == "pinacoid" and aspect is not None:
             derived += f"-{aspect[0]:g}x{aspect[1]:g}"
         return derived
 
+    @model_validator(mode="after")
+    def _check_size(self) -> "PopulationConfig":
+        if self.size is None and self.grading is None:
+            raise ValueError("size: required key is missing (or give a [populations.grading] table)")
+        if self.size is not None and self.grading is not None:
+            raise ValueError("give either size (one size) or a grading table (a distribution of sizes), not both")
+        return self
+
+    @property
+    def grading_curve(self) -> Grading | None:
+        """The distribution of sizes (d), None for a population of one size."""
+        return self.grading.make_grading() if self.grading is not None else None
+
+    @property
+    def largest_size(self) -> float:
+        """The largest grain size of the population, d."""
+        return self.size if self.grading is None else self.grading_curve.d_max
+
+    @property
+    def smallest_size(self) -> float:
+        """The smallest grain size of the population, d."""
+        return self.size if self.grading is None else self.grading_curve.d_min
+
     def make_shape(self) -> Shape:
-        """The grain shape at this population's size (body frame, lengths in d).
+        """The grain shape at this population's size, or at size 1 for a graded one (body frame,
+        lengths in d; each graded grain is this shape scaled by its size).
 
         Returns:
             ``Sphere(size)``, ``Pinacoid.from_size(size, *aspect)`` or
             ``polyhedron_of_size(vertices, size)``.
         """
+        size = self.size if self.grading is None else 1.0
         if self.shape == "sphere":
-            return Sphere(self.size)
+            return Sphere(size)
         if self.shape == "pinacoid":
-            return Pinacoid.from_size(self.size, *self.aspect, name=self.name)
-        return polyhedron_of_size(self.vertices, self.size, name=self.name)
-
-
-def _setting(default: Any, unit: str = "", **field: Any) -> Any:
-    """A config field with its unit (``""``: a pure number or a word), which the reference page and
-    ``granpack check`` print beside the value."""
-    return Field(default=default, json_schema_extra={"unit": unit}, **field)
-
-
-def unit_of(model: type[BaseModel], key: str) -> str:
-    """The unit declared for ``model.key`` (``""`` if none)."""
-    extra = model.model_fields[key].json_schema_extra
-    return extra.get("unit", "") if isinstance(extra, dict) else ""
+            return Pinacoid.from_size(size, *self.aspect, name=self.name)
+        return polyhedron_of_size(self.vertices, size, name=self.name)
 
 
 class TimeSteppingConfig(_Model):
@@ -413,7 +521,7 @@ class RunConfig(_Model):
         populations, stepping = info.data.get("populations"), info.data.get("time_stepping")
         if populations is None or stepping is None:
             return lateral_size  # reported elsewhere
-        largest = max(p.size for p in populations)
+        largest = max(p.largest_size for p in populations)
         alert = _alert_distance(stepping, largest)
         minimum = 2.0 * (largest + alert)
         if not lateral_size > minimum:
@@ -421,7 +529,7 @@ class RunConfig(_Model):
                 f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
                 f"pair interacts through at most one periodic image (got {lateral_size:g})"
             )
-        smallest = min(p.size for p in populations)
+        smallest = min(p.smallest_size for p in populations)
         cells = (lateral_size / (smallest + alert)) ** 2
         if cells > MAX_GRID_CELLS:
             largest_side = (smallest + alert) * math.sqrt(MAX_GRID_CELLS)
@@ -460,7 +568,7 @@ class RunConfig(_Model):
     @property
     def largest_size(self) -> float:
         """Largest circumscribed diameter over the populations, d."""
-        return max(p.size for p in self.populations)
+        return max(p.largest_size for p in self.populations)
 
     @property
     def resolved_alert_distance(self) -> float:
@@ -489,8 +597,12 @@ class RunConfig(_Model):
         lines += _toml_keys(self, ("seed", "n_particles", "lateral_size"))
         for population in self.populations:
             lines += ["", "[[populations]]"]
-            keys = [k for k in PopulationConfig.model_fields if getattr(population, k) is not None]
+            keys = [k for k in PopulationConfig.model_fields if getattr(population, k) is not None and k != "grading"]
             lines += _toml_keys(population, ["name"] + [k for k in keys if k != "name"])
+            if population.grading is not None:
+                grading = population.grading
+                lines += ["", "[populations.grading]"]
+                lines += _toml_keys(grading, [k for k in GradingConfig.model_fields if getattr(grading, k) is not None])
         for table in SETTING_TABLES:
             model = getattr(self, table)
             lines += ["", f"[{table}]"] + _toml_keys(model, type(model).model_fields)
@@ -558,7 +670,7 @@ def _allowed_keys(loc: tuple) -> list[str]:
         if isinstance(part, int):
             continue
         annotation = model.model_fields[part].annotation
-        model = PopulationConfig if part == "populations" else annotation
+        model = {"populations": PopulationConfig, "grading": GradingConfig}.get(part, annotation)
     return list(model.model_fields)
 
 

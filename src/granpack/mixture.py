@@ -106,29 +106,51 @@ def volume_share_counts(shares, volumes, n_particles: int) -> np.ndarray:
     return counts
 
 
+#: the random stream that orders each graded population's sizes among its grains (apart from the
+#: run's stream, which draws the population order, the deposit and the orientations)
+_GRADING_STREAM = 0x67726164
+
+
 @dataclass(frozen=True)
 class Mixture:
-    """The populations of a run with their shapes and particle counts.
+    """The populations of a run with their shapes, particle counts and, for a graded population,
+    the size of each of its grains.
+
+    A graded population's grains have sizes :meth:`granpack.grading.Grading.sizes` of its count,
+    in an order drawn from the seed: grain ``m`` of population ``k`` (in particle order) has the
+    size ``sizes[k][m]`` and its own kind in the shape table (:meth:`particle_kinds`).
 
     Attributes:
         populations: the ``K`` population configs.
-        shapes: ``K`` shapes at their sizes (body frame, d); shape k is population k.
+        shapes: ``K`` shapes at their sizes (body frame, d); shape k is population k (a graded
+            population's at size 1).
         counts: ``(K,)`` int64 particles per population, summing to N.
+        sizes: per population, the ``(counts[k],)`` sizes of its grains (d), None for one size.
     """
 
     populations: tuple[PopulationConfig, ...]
     shapes: tuple[Shape, ...]
     counts: np.ndarray
+    sizes: tuple[np.ndarray | None, ...]
 
     @classmethod
     def from_config(cls, config: RunConfig) -> "Mixture":
-        """Shapes and counts of ``config.populations`` for ``config.n_particles`` grains."""
+        """Shapes, counts and graded sizes of ``config.populations`` for ``config.n_particles`` grains."""
         shapes = tuple(p.make_shape() for p in config.populations)
-        counts = volume_share_counts(
-            [p.volume_fraction for p in config.populations], [s.volume for s in shapes], config.n_particles
-        )
+        mean_volumes = [s.volume * (p.grading_curve.mean_cube() if p.grading is not None else 1.0)
+                        for p, s in zip(config.populations, shapes)]
+        counts = volume_share_counts([p.volume_fraction for p in config.populations], mean_volumes, config.n_particles)
         counts.setflags(write=False)
-        return cls(populations=tuple(config.populations), shapes=shapes, counts=counts)
+        sizes = []
+        for k, (p, n) in enumerate(zip(config.populations, counts)):
+            if p.grading is None:
+                sizes.append(None)
+                continue
+            order = np.random.default_rng([config.seed, k, _GRADING_STREAM]).permutation(int(n))
+            graded = p.grading_curve.sizes(int(n))[order]
+            graded.setflags(write=False)
+            sizes.append(graded)
+        return cls(populations=tuple(config.populations), shapes=shapes, counts=counts, sizes=tuple(sizes))
 
     @property
     def n_particles(self) -> int:
@@ -141,9 +163,20 @@ class Mixture:
         return [p.name for p in self.populations]
 
     @property
+    def is_graded(self) -> bool:
+        """Whether some population has a distribution of sizes."""
+        return any(s is not None for s in self.sizes)
+
+    @property
     def particle_volumes(self) -> np.ndarray:
-        """``(K,)`` volume of one grain of each population, d^3."""
-        return np.array([s.volume for s in self.shapes])
+        """``(K,)`` mean volume of a grain of each population, d^3."""
+        return self.solid_volumes / np.maximum(self.counts, 1)
+
+    @property
+    def solid_volumes(self) -> np.ndarray:
+        """``(K,)`` solid volume of each population's grains, d^3."""
+        return np.array([s.volume * (n if d is None else float(np.sum(d ** 3)))
+                         for s, n, d in zip(self.shapes, self.counts, self.sizes)])
 
     @property
     def requested_shares(self) -> np.ndarray:
@@ -152,8 +185,8 @@ class Mixture:
 
     @property
     def achieved_shares(self) -> np.ndarray:
-        """``(K,)`` volume shares of the chosen counts, :math:`n_i v_i / \\sum_j n_j v_j`."""
-        solid = self.counts * self.particle_volumes
+        """``(K,)`` volume shares of the grains, :math:`V_i / \\sum_j V_j`."""
+        solid = self.solid_volumes
         return solid / solid.sum()
 
     def pile_height(self, lateral_size: float, solid_fraction: float | None = None) -> float:
@@ -161,15 +194,44 @@ class Mixture:
         ``solid_fraction``; by default :data:`PHI_ONE_SIZE` for grains of one size and
         :data:`PHI_MIXED_SIZES` for a mix of sizes, whose small grains fill the large ones' voids."""
         if solid_fraction is None:
-            solid_fraction = PHI_MIXED_SIZES if len({p.size for p in self.populations}) > 1 else PHI_ONE_SIZE
-        return float((self.counts * self.particle_volumes).sum()) / (solid_fraction * lateral_size ** 2)
+            solid_fraction = PHI_MIXED_SIZES if self.has_mixed_sizes else PHI_ONE_SIZE
+        return float(self.solid_volumes.sum()) / (solid_fraction * lateral_size ** 2)
+
+    @property
+    def has_mixed_sizes(self) -> bool:
+        """Whether the grains have more than one size."""
+        return self.is_graded or len({p.size for p in self.populations}) > 1
+
+    def sieve_curve(self, k: int, points: int = 9) -> list[dict]:
+        """The requested and achieved sieve curve of graded population ``k``: ``{"size" (d),
+        "requested", "achieved"}`` (shares passing by volume) at the sieves of its table, or at
+        ``points`` sizes spaced evenly in log D from its smallest to its largest size."""
+        from granpack.grading import achieved_passing
+
+        grading = self.populations[k].grading_curve
+        at = (np.array(grading.sieves) if grading.kind == "sieves"
+              else np.geomspace(grading.d_min, grading.d_max, points))
+        d = self.sizes[k]
+        achieved = achieved_passing(d, d ** 3, at)
+        return [{"size": float(a), "requested": float(r), "achieved": float(x)}
+                for a, r, x in zip(at, grading.passing_at(at), achieved)]
+
+    def largest_deviation(self, k: int) -> float:
+        """The largest gap between the requested and achieved sieve curves of graded population ``k``."""
+        from granpack.grading import largest_deviation
+
+        d = self.sizes[k]
+        return largest_deviation(self.populations[k].grading_curve, d, d ** 3)
 
     def table(self) -> list[dict]:
-        """One row per population: ``population``, ``shape``, ``size`` (d), ``aspect`` (pinacoids,
-        else None), ``count``, ``requested_share``, ``achieved_share``, ``particle_volume`` (d^3)."""
+        """One row per population: ``population``, ``shape``, ``size`` (d; for a graded population its
+        ``curve`` and ``d_min``, ``d_max`` instead, and the ``largest_deviation`` of its sieve curve),
+        ``aspect`` (pinacoids, else None), ``count``, ``requested_share``, ``achieved_share``,
+        ``particle_volume`` (d^3, the mean)."""
         achieved, volumes = self.achieved_shares, self.particle_volumes
-        return [
-            {
+        rows = []
+        for k, p in enumerate(self.populations):
+            row = {
                 "population": p.name,
                 "shape": p.shape,
                 "size": p.size,
@@ -179,8 +241,11 @@ class Mixture:
                 "achieved_share": float(achieved[k]),
                 "particle_volume": float(volumes[k]),
             }
-            for k, p in enumerate(self.populations)
-        ]
+            if p.grading is not None:
+                row.update(curve=p.grading.curve, d_min=p.smallest_size, d_max=p.largest_size,
+                           largest_deviation=self.largest_deviation(k) if self.counts[k] else None)
+            rows.append(row)
+        return rows
 
     def particle_populations(self, rng: np.random.Generator) -> np.ndarray:
         """``(N,)`` int64 population index of each particle, in a random order.
@@ -190,6 +255,21 @@ class Mixture:
         """
         return rng.permutation(np.repeat(np.arange(len(self.counts), dtype=np.int64), self.counts))
 
+    def particle_kinds(self, population: np.ndarray) -> np.ndarray:
+        """``(N,)`` int64 kind of each particle in :meth:`particle_shape_table`: its population's, or
+        for the ``m``-th grain of a graded population (in particle order) its own."""
+        kind = np.array(population, dtype=np.int64)
+        offset = len(self.populations)
+        for k, d in enumerate(self.sizes):
+            if d is None:
+                continue
+            members = np.flatnonzero(population == k)
+            kind[members] = offset + np.arange(len(members))
+            offset += len(d)
+        return kind
+
     def particle_shape_table(self) -> ShapeTable:
-        """Kernel geometry of the populations; kind k is population k."""
-        return ShapeTable.from_shapes(self.shapes)
+        """Kernel geometry: kind k is population k, then one kind per graded grain (in the order of
+        :attr:`sizes`)."""
+        graded = [self.shapes[k].scaled(float(size)) for k, d in enumerate(self.sizes) if d is not None for size in d]
+        return ShapeTable.from_shapes(self.shapes + tuple(graded))

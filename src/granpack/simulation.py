@@ -89,12 +89,13 @@ def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleSt
     shapes = mixture.particle_shape_table()
     rng = np.random.default_rng(config.seed)
     population = mixture.particle_populations(rng)
-    radii = shapes.radius[population]
+    kind = mixture.particle_kinds(population)
+    radii = shapes.radius[kind]
     centres = deposit(radii, config.lateral_size, rng, lateral=config.deposit.lateral,
                       method=config.deposit.method, progress=progress)
     quaternion = random_quaternions(len(population), rng)
     box = Box.square(config.lateral_size)
-    state = ParticleState(box=box, shapes=shapes, kind=population, population=population,
+    state = ParticleState(box=box, shapes=shapes, kind=kind, population=population,
                           position=box.wrap(centres), quaternion=quaternion)
     return state, mixture
 

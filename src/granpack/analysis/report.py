@@ -79,14 +79,19 @@ def _populations(packing: Packing) -> list[dict]:
     for a, name in enumerate(packing.population_names):
         members = state.population == a
         kinds = np.unique(state.kind[members])
-        out.append(
-            {
-                "name": name,
-                "n": int(members.sum()),
-                "volume_fraction": float(state.mass[members].sum() / total) if total > 0 else math.nan,
-                "shapes": [shape_spec(state.shapes.shapes[k]) for k in kinds],
-            }
-        )
+        shapes = [state.shapes.shapes[k] for k in kinds]
+        # a graded population: its grains' one shape at size 1 and their range of sizes
+        bases = {id(s.scale_of[0]): s.scale_of[0] for s in shapes if getattr(s, "scale_of", None) is not None}
+        sizes = 2.0 * state.radius[members]
+        row = {
+            "name": name,
+            "n": int(members.sum()),
+            "volume_fraction": float(state.mass[members].sum() / total) if total > 0 else math.nan,
+            "shapes": [shape_spec(s) for s in (bases.values() if bases else shapes)],
+        }
+        if len(kinds) > 1 and len(sizes):
+            row["sizes"] = {"min": float(sizes.min()), "max": float(sizes.max()), "mean": float(sizes.mean())}
+        out.append(row)
     return out
 
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections import Counter
 from pathlib import Path
 
 import gsd.hoomd
@@ -50,12 +51,17 @@ FORMAT_VERSION = 1
 _CONTACT_FIELDS = ("body_i", "body_j", "shift", "normal", "ctype", "point_start", "point", "gap", "impulse")
 
 
-def shape_spec(shape: Shape) -> dict:
+def shape_spec(shape: Shape, index_of: dict[int, int] | None = None) -> dict:
     """A JSON-able description that :func:`shape_from_spec` turns back into the same shape.
 
     Pinacoids keep their defining dimensions (rebuilt bit for bit); other polyhedra keep their
-    body-frame vertices; spheres their diameter.
+    body-frame vertices; spheres their diameter. A polyhedron scaled from another shape of the same
+    table (a graded grain; ``index_of`` maps ``id(shape)`` to its kind) keeps that kind and the
+    factor, ``{"type": "scaled", "of": k, "factor": f}``.
     """
+    scale_of = getattr(shape, "scale_of", None)
+    if scale_of is not None and index_of is not None and id(scale_of[0]) in index_of:
+        return {"type": "scaled", "of": index_of[id(scale_of[0])], "factor": scale_of[1]}
     if isinstance(shape, Sphere):
         return {"type": "sphere", "diameter": shape.diameter}
     if isinstance(shape, Pinacoid):
@@ -72,9 +78,11 @@ def shape_spec(shape: Shape) -> dict:
     raise TypeError(f"cannot store shape {shape!r}")
 
 
-def shape_from_spec(spec: dict) -> Shape:
-    """Inverse of :func:`shape_spec`."""
+def shape_from_spec(spec: dict, earlier: list[Shape] | None = None) -> Shape:
+    """Inverse of :func:`shape_spec`; ``earlier``: the shapes of the kinds before (a scaled one's base)."""
     kind = spec["type"]
+    if kind == "scaled":
+        return earlier[int(spec["of"])].scaled(float(spec["factor"]))
     if kind == "sphere":
         return Sphere(spec["diameter"])
     if kind == "pinacoid":
@@ -87,7 +95,8 @@ def shape_from_spec(spec: dict) -> Shape:
 def _type_names(shapes: tuple[Shape, ...]) -> list[str]:
     """Unique GSD type names: the shape name (``sphere`` for spheres), suffixed by the kind if repeated."""
     base = [s.name if isinstance(s, ConvexPolyhedron) else "sphere" for s in shapes]
-    return [b if base.count(b) == 1 else f"{b}-{k}" for k, b in enumerate(base)]
+    repeated = Counter(base)
+    return [b if repeated[b] == 1 else f"{b}-{k}" for k, b in enumerate(base)]
 
 
 def _text(obj) -> np.ndarray:
@@ -134,7 +143,8 @@ def _frame(packing: Packing) -> gsd.hoomd.Frame:
     log["granpack/position"] = state.position.astype(np.float64)
     log["granpack/orientation"] = state.quaternion.astype(np.float64)
     log["granpack/velocity"] = state.velocity.astype(np.float64)
-    log["granpack/shapes"] = _text([shape_spec(s) for s in shapes])
+    index_of = {id(s): k for k, s in enumerate(shapes)}
+    log["granpack/shapes"] = _text([shape_spec(s, index_of) for s in shapes])
     log["granpack/population_names"] = _text(list(packing.population_names))
     log["granpack/metadata"] = _text(packing.metadata)
     return f
@@ -219,7 +229,10 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
     if fmt != FORMAT_VERSION:
         raise ValueError(f"unsupported granpack GSD format {fmt} (this version reads {FORMAT_VERSION})")
     n = int(frame.particles.N)
-    shapes = ShapeTable.from_shapes([shape_from_spec(s) for s in _untext(log["granpack/shapes"])])
+    built: list[Shape] = []
+    for spec in _untext(log["granpack/shapes"]):
+        built.append(shape_from_spec(spec, built))
+    shapes = ShapeTable.from_shapes(built)
     lx, ly = (float(v) for v in log["granpack/lateral_size"])
     state = ParticleState(
         box=Box(lx, ly),

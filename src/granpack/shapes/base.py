@@ -24,6 +24,8 @@ class Shape(ABC):
 
     #: short kind name: ``"sphere"`` or ``"polyhedron"``
     kind: str = ""
+    #: ``(shape, factor)`` when this one is ``shape.scaled(factor)`` (a graded grain), else None
+    scale_of: "tuple[Shape, float] | None" = None
 
     @property
     @abstractmethod

@@ -104,7 +104,10 @@ class Pinacoid(ConvexPolyhedron):
         return self.width / self.thickness
 
     def scaled(self, factor: float) -> "Pinacoid":
-        return Pinacoid(self.length * factor, self.width * factor, self.thickness * factor, self.alpha_deg, name=self.name)
+        out = super().scaled(factor)
+        out.length, out.width, out.thickness, out.ridge = (self.length * factor, self.width * factor,
+                                                          self.thickness * factor, self.ridge * factor)
+        return out
 
     def __repr__(self) -> str:
         return (

@@ -15,6 +15,9 @@ With ``A = [a b c]`` (vertex columns) and ``D = det A``:
 
 from __future__ import annotations
 
+import copy
+from functools import cached_property
+
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
@@ -186,12 +189,12 @@ class ConvexPolyhedron(Shape):
         tol = 1e-9 * self.size
         return bool(all(np.min(np.linalg.norm(v + p, axis=1)) < tol for p in v))
 
-    @property
+    @cached_property
     def face_axes(self) -> np.ndarray:
         """``(A, 3)`` distinct face-normal directions up to sign (separating-axis candidates)."""
         return _unique_directions(self.face_normals)
 
-    @property
+    @cached_property
     def edge_directions(self) -> np.ndarray:
         """``(D, 3)`` distinct unit edge directions up to sign (for edge x edge axes)."""
         v = self.vertices
@@ -205,7 +208,22 @@ class ConvexPolyhedron(Shape):
         return {"type": "ConvexPolyhedron", "rounding_radius": 0.0, "vertices": self.vertices.tolist()}
 
     def scaled(self, factor: float) -> "ConvexPolyhedron":
-        return ConvexPolyhedron(self.vertices * factor, name=self.name)
+        """The same body ``factor`` times larger, in the same body frame: vertices, offsets and the
+        centroid scale by ``factor``, the volume by its cube, the moments by its fifth power (the
+        hull is not computed again, so a grading's thousands of grains cost little)."""
+        factor = float(factor)
+        if not factor > 0:
+            raise ShapeError(f"scale factor must be > 0, got {factor}")
+        self.face_axes, self.edge_directions  # noqa: B018 (computed once, shared by the copies: they do not scale)
+        out = copy.copy(self)
+        out.vertices = self.vertices * factor
+        out.face_offsets = self.face_offsets * factor
+        out.input_centroid = self.input_centroid * factor
+        out._volume = self._volume * factor ** 3
+        out._moments = self._moments * factor ** 5
+        base, times = self.scale_of if self.scale_of is not None else (self, 1.0)
+        out.scale_of = (base, times * factor)
+        return out
 
     def __repr__(self) -> str:
         return (

@@ -46,7 +46,10 @@ class Sphere(Shape):
         return {"type": "Sphere", "diameter": self.diameter}
 
     def scaled(self, factor: float) -> "Sphere":
-        return Sphere(self.diameter * factor)
+        out = Sphere(self.diameter * factor)
+        base, times = self.scale_of if self.scale_of is not None else (self, 1.0)
+        out.scale_of = (base, times * factor)
+        return out
 
     def __repr__(self) -> str:
         return f"Sphere(diameter={self.diameter:g})"

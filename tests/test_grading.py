@@ -1,0 +1,181 @@
+"""Gradings: the distributions' exact curves and moments, the sizes given to the grains, the config."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from granpack.config import load_config_dict
+from granpack.errors import InputError
+from granpack.grading import Grading, achieved_passing, largest_deviation
+from granpack.mixture import Mixture
+
+FULLER = Grading.fuller(0.1, 1.0, 0.5)
+SIEVES = Grading.sieve_table([0.05, 0.1, 0.25, 0.5, 1.0, 2.0], [0.0, 0.1, 0.3, 0.6, 1.0, 1.0])
+LOGNORMAL = Grading.lognormal(0.5, 0.2)
+
+
+def test_fuller_curve_is_the_truncated_power_law():
+    d = np.array([0.1, 0.25, 0.5, 1.0])
+    expected = (np.sqrt(d) - math.sqrt(0.1)) / (1.0 - math.sqrt(0.1))
+    np.testing.assert_allclose(FULLER.passing_at(d), expected, rtol=1e-14)
+    assert FULLER.size_ratio == pytest.approx(10.0)
+
+
+def test_a_sieve_table_is_interpolated_in_log_size_and_trimmed_to_its_grains():
+    assert (SIEVES.d_min, SIEVES.d_max) == (0.05, 1.0)  # the sieve 2.0 that 100 % passed holds no grain
+    assert SIEVES.passing_at([0.1, 0.25])[1] == pytest.approx(0.3)
+    midway = math.sqrt(0.25 * 0.5)  # half way in log D between two sieves: half way in passing
+    assert SIEVES.passing_at([midway])[0] == pytest.approx(0.45, rel=1e-12)
+
+
+@pytest.mark.parametrize("grading", [FULLER, SIEVES, LOGNORMAL], ids=["fuller", "sieves", "lognormal"])
+def test_number_moments_are_exact_against_quadrature_of_the_volume_curve(grading):
+    """E_N[D^k] = E_V[D^(k-3)] / E_V[D^-3], by quadrature of dP/dD on a fine log grid."""
+    d = np.geomspace(grading.d_min, grading.d_max, 400_001)
+    density = np.gradient(grading.passing_at(d), d)  # dP/dD
+    inverse_cube = integrate.trapezoid(density * d ** -3.0, d)
+    for k in (1, 2, 3):
+        numeric = integrate.trapezoid(density * d ** (k - 3.0), d) / inverse_cube
+        assert grading.number_moments(k) == pytest.approx(numeric, rel=2e-4), k
+    assert grading.mean_cube() == pytest.approx(grading.number_moments(3), rel=1e-12)
+
+
+def test_the_lognormal_has_the_requested_mean_and_polydispersity_before_its_truncation():
+    wide = Grading.lognormal(0.5, 0.2, cut=12.0)
+    mean, second = wide.number_moments(1), wide.number_moments(2)
+    assert mean == pytest.approx(0.5, rel=1e-12)
+    assert math.sqrt(second - mean ** 2) / mean == pytest.approx(0.2, rel=1e-10)
+
+
+@pytest.mark.parametrize("grading", [FULLER, SIEVES, LOGNORMAL], ids=["fuller", "sieves", "lognormal"])
+def test_the_grains_sizes_have_the_distributions_moments_and_volume_curve(grading):
+    sizes = grading.sizes(20_000)
+    assert np.all(np.diff(sizes) >= 0) and sizes[0] >= grading.d_min and sizes[-1] <= grading.d_max
+    for k in (1, 2, 3):
+        assert np.mean(sizes ** k) == pytest.approx(grading.number_moments(k), rel=2e-3), k
+    # the volume curve of the grains: within a few of the largest grains' volume shares
+    assert largest_deviation(grading, sizes, sizes ** 3) < 4 * sizes[-1] ** 3 / np.sum(sizes ** 3) + 1e-3
+
+
+def test_the_largest_deviation_falls_with_the_number_of_grains():
+    gaps = [largest_deviation(FULLER, d, d ** 3) for d in (FULLER.sizes(n) for n in (300, 3000, 30_000))]
+    assert gaps[0] > gaps[1] > gaps[2] and gaps[2] < 0.003
+
+
+def test_achieved_passing_counts_volume_below_each_sieve():
+    sizes, volumes = np.array([1.0, 2.0, 3.0]), np.array([1.0, 1.0, 2.0])
+    np.testing.assert_allclose(achieved_passing(sizes, volumes, [0.5, 1.0, 2.5, 3.0]), [0.0, 0.25, 0.5, 1.0])
+
+
+def graded(grading: dict, n: int = 2000, shape: str = "sphere", **extra) -> dict:
+    population = {"shape": shape, "volume_fraction": 1.0, "grading": grading}
+    return {"n_particles": n, "lateral_size": 6.0, "populations": [population], **extra}
+
+
+FULLER_KEYS = {"curve": "fuller", "d_min": 0.1, "d_max": 1.0, "exponent": 0.5}
+
+
+@pytest.mark.parametrize("bad, message", [
+    ({"curve": "fuller", "d_min": 1.0, "d_max": 0.5, "exponent": 0.5}, "d_min must be below d_max"),
+    ({"curve": "fuller", "d_min": 0.1, "d_max": 1.0, "exponent": 0.0}, "grading.exponent: must be > 0"),
+    ({"curve": "fuller", "d_min": 0.1, "d_max": 1.0}, "curve 'fuller' needs exponent"),
+    ({"curve": "sieves", "sieves": [4, 8, 16], "percent_passing": [0, 60, 50]}, "must not decrease"),
+    ({"curve": "sieves", "sieves": [4, 16, 8], "percent_passing": [0, 50, 100]}, "increasing order"),
+    ({"curve": "sieves", "sieves": [4, 8, 16], "percent_passing": [10, 50, 100]}, "from 0 at the first sieve"),
+    ({"curve": "sieves", "sieves": [4, 8], "percent_passing": [0, 50, 100]}, "the same length"),
+    ({"curve": "lognormal", "mean": 0.5, "polydispersity": 0.2, "d_min": 0.1}, "not a key of curve 'lognormal'"),
+    ({"curve": "gaussian"}, "grading.curve: must be 'fuller', 'sieves' or 'lognormal'"),
+])
+def test_impossible_curves_are_one_line_errors_naming_the_key(bad, message):
+    with pytest.raises(InputError) as info:
+        load_config_dict(graded(bad))
+    text = str(info.value)
+    assert "\n" not in text and "populations[0].grading" in text and message in text
+
+
+def test_a_population_gives_a_size_or_a_grading_not_both():
+    with pytest.raises(InputError, match="size: required key is missing"):
+        load_config_dict({"populations": [{"shape": "sphere", "volume_fraction": 1.0}]})
+    both = graded(FULLER_KEYS)
+    both["populations"][0]["size"] = 1.0
+    with pytest.raises(InputError, match="not both"):
+        load_config_dict(both)
+
+
+def test_a_sieve_table_in_mm_scales_its_largest_grains_to_1_d():
+    config = load_config_dict(graded({"curve": "sieves", "sieves": [4, 8, 16, 31.5],
+                                      "percent_passing": [0, 30, 70, 100]}, shape="pinacoid"))
+    curve = config.populations[0].grading_curve
+    assert curve.d_max == pytest.approx(1.0) and curve.d_min == pytest.approx(4 / 31.5)
+    assert config.largest_size == pytest.approx(1.0)
+    halved = load_config_dict(graded({"curve": "sieves", "sieves": [4, 8, 16, 31.5], "percent_passing": [0, 30, 70, 100],
+                                      "sieve_unit": 63.0}, shape="pinacoid"))
+    assert halved.populations[0].grading_curve.d_max == pytest.approx(0.5)
+
+
+def test_a_graded_config_round_trips_through_its_resolved_toml():
+    import tomllib
+
+    config = load_config_dict(graded(FULLER_KEYS))
+    assert "[populations.grading]" in config.to_toml()
+    assert load_config_dict(tomllib.loads(config.to_toml())) == config
+
+
+def test_a_graded_mixture_gives_each_grain_its_size_and_kind():
+    config = load_config_dict(graded(FULLER_KEYS, n=3000))
+    mixture = Mixture.from_config(config)
+    sizes = mixture.sizes[0]
+    assert mixture.counts[0] == 3000 and len(sizes) == 3000 and mixture.is_graded
+    np.testing.assert_allclose(np.sort(sizes), FULLER.sizes(3000))  # the sizes, in an order drawn from the seed
+    assert not np.all(np.diff(sizes) >= 0)
+    population = mixture.particle_populations(np.random.default_rng(3))
+    kinds = mixture.particle_kinds(population)
+    table = mixture.particle_shape_table()
+    assert table.n_kinds == 3001 and np.all(np.sort(kinds) == np.arange(1, 3001))
+    np.testing.assert_allclose(2 * table.radius[kinds], sizes, rtol=1e-14)  # grain m has size m
+    assert mixture.solid_volumes[0] == pytest.approx(math.pi / 6 * np.sum(sizes ** 3))
+    # the same seed, the same sizes in the same order; another seed, another order
+    assert np.array_equal(Mixture.from_config(config).sizes[0], sizes)
+    assert not np.array_equal(Mixture.from_config(config.with_seed(2)).sizes[0], sizes)
+
+
+def test_graded_and_one_size_populations_share_the_volume_by_their_mean_grain_volume():
+    config = load_config_dict({"n_particles": 4000, "lateral_size": 6.0, "populations": [
+        {"shape": "sphere", "volume_fraction": 0.5, "grading": FULLER_KEYS},
+        {"shape": "pinacoid", "size": 1.0, "volume_fraction": 0.5}]})
+    mixture = Mixture.from_config(config)
+    assert mixture.achieved_shares == pytest.approx([0.5, 0.5], abs=2e-3)
+    assert mixture.particle_kinds(np.array([0, 1, 0, 1])).tolist() == [2, 1, 3, 1]
+
+
+def test_a_graded_pinacoid_is_the_unit_pinacoid_scaled_exactly():
+    from granpack.shapes import Pinacoid
+
+    config = load_config_dict(graded(FULLER_KEYS, n=50, shape="pinacoid"))
+    mixture = Mixture.from_config(config)
+    table = mixture.particle_shape_table()
+    k = 1 + int(np.argmax(mixture.sizes[0]))
+    size = mixture.sizes[0][k - 1]
+    exact = Pinacoid.from_size(size)
+    assert table.volume[k] == pytest.approx(exact.volume, rel=1e-13)
+    np.testing.assert_allclose(table.inertia[k], exact.principal_moments, rtol=1e-12)
+    assert 2 * table.radius[k] == pytest.approx(size, rel=1e-13)
+
+
+def test_a_graded_pile_pours_and_its_final_state_reads_back(tmp_path):
+    from granpack.io.gsd import read_packing
+    from granpack.simulation import run_packing
+
+    config = load_config_dict(graded(FULLER_KEYS | {"d_min": 0.3}, n=200, shape="pinacoid", lateral_size=3.0,
+                                     equilibrium={"max_time": 1.0}))
+    summary = run_packing(config, tmp_path, progress=False)
+    packing = read_packing(tmp_path / "final.gsd")
+    mixture = Mixture.from_config(config)
+    assert packing.state.shapes.n_kinds == 201 and summary["final"]["max_overlap"] < 5e-3
+    sizes = 2 * packing.state.radius
+    np.testing.assert_allclose(np.sort(sizes), np.sort(mixture.sizes[0]), rtol=1e-12)
+    np.testing.assert_allclose(packing.state.mass, (packing.state.shapes.shapes[0].volume * sizes ** 3), rtol=1e-12)
