@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -179,3 +180,71 @@ def test_a_graded_pile_pours_and_its_final_state_reads_back(tmp_path):
     sizes = 2 * packing.state.radius
     np.testing.assert_allclose(np.sort(sizes), np.sort(mixture.sizes[0]), rtol=1e-12)
     np.testing.assert_allclose(packing.state.mass, (packing.state.shapes.shapes[0].volume * sizes ** 3), rtol=1e-12)
+
+
+def two_sizes_stacked(base=None):
+    """A lattice packing (the simple-cubic column of unit spheres by default) with its lower half
+    replaced by spheres of 0.5 d in the same places, the contacts and forces kept: the small ones
+    sink, by construction."""
+    from dataclasses import replace
+
+    from packing_builders import sphere_column
+
+    from granpack.shapes import ShapeTable, Sphere
+
+    column = base if base is not None else sphere_column(4, 8)
+    state = column.state
+    small = state.position[:, 2] < 0.5 * state.position[:, 2].max()
+    kind = small.astype(np.int64)
+    shapes = ShapeTable.from_shapes([Sphere(1.0), Sphere(0.5)])
+    moved = type(state)(box=state.box, shapes=shapes, kind=kind, population=kind, position=state.position,
+                        quaternion=state.quaternion)
+    return replace(column, state=moved, population_names=["large", "small"]), small
+
+
+def test_size_classes_of_a_stack_with_its_small_grains_below():
+    from granpack.analysis.size_classes import SizeClasses
+
+    packing, small = two_sizes_stacked()
+    classes = SizeClasses([0.4, 0.75, 1.0], z_range=(2.0, 6.0)).compute(packing)
+    share_small = 0.125 / 1.125  # 64 grains of volume (pi/6) 0.5^3 against 64 of pi/6
+    np.testing.assert_array_equal(classes.counts, [64, 64])
+    np.testing.assert_allclose(classes.volume_shares, [share_small, 1 - share_small], rtol=1e-12)
+    np.testing.assert_allclose(classes.passing, [0.0, share_small, 1.0], atol=1e-12)
+    np.testing.assert_allclose(classes.profile[0], [1, 1, 1, 1, 0, 0, 0, 0], atol=1e-12)  # segregated: small below
+    np.testing.assert_allclose(classes.z, np.arange(8) + 0.5)
+    # the bulk's sieve curve: its grains only (z from 2 to 6: two layers of each size)
+    np.testing.assert_allclose(classes.passing_bulk, [0.0, share_small, 1.0], atol=1e-12)
+    np.testing.assert_array_equal(classes.bulk_counts, [32, 32])
+
+
+def test_size_classes_count_the_contacts_and_rattlers_of_each_class():
+    from packing_builders import fcc_spheres
+
+    from granpack.analysis.coordination import Coordination
+    from granpack.analysis.size_classes import SizeClasses
+
+    packing, small = two_sizes_stacked(fcc_spheres(4, 6)[0])
+    z = packing.state.position[:, 2]
+    z_range = (float(np.quantile(z, 0.2)), float(np.quantile(z, 0.8)))
+    co = Coordination(z_range).compute(packing)
+    classes = SizeClasses([0.4, 0.75, 1.0], z_range=z_range, coordination=co).compute(packing)
+    bulk = (z >= z_range[0]) & (z <= z_range[1])
+    contacts = co.per_particle.sum(axis=1)
+    for k, members in enumerate((small, ~small)):
+        chosen = bulk & members & ~co.rattlers
+        assert chosen.any() and classes.coordination_by_class[k] == pytest.approx(contacts[chosen].mean())
+        assert classes.rattler_fraction_by_class[k] == pytest.approx(co.rattlers[bulk & members].mean())
+    assert classes.coordination_by_class[0] == pytest.approx(12.0)  # the fcc lattice: 12 neighbours
+
+
+def test_an_analysis_reports_size_classes_for_a_packing_of_several_sizes_only():
+    from packing_builders import sphere_column
+
+    from granpack.analysis.report import AnalysisOptions, analyze_packing
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = analyze_packing(two_sizes_stacked()[0], AnalysisOptions(sieves=(0.4, 0.75, 1.0)))
+        assert result["size_classes"]["counts"].tolist() == [64, 64]
+        assert "size_classes" not in analyze_packing(sphere_column(4, 8))

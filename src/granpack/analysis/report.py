@@ -6,7 +6,8 @@ figures with the gap-rule and the detection types under ``gap_rule`` and ``geome
 {Q00, Q22, director, ...},
 ``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
-{z, proportions, ...}, ``n_particles``, ``populations``, ``seed``, ``version``; extras:
+{z, proportions, ...}, ``size_classes`` {sieves, passing, profile, coordination, ...; a packing of
+several sizes only}, ``n_particles``, ``populations``, ``seed``, ``version``; extras:
 ``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
 ``nan`` here and ``null`` in the file.
 """
@@ -28,6 +29,7 @@ from granpack.analysis.homogeneity import Homogeneity
 from granpack.analysis.interpenetration import Interpenetration
 from granpack.analysis.order import Order
 from granpack.analysis.pair_correlation import PairCorrelation
+from granpack.analysis.size_classes import SizeClasses
 from granpack.analysis.solid_fraction import SolidFraction
 from granpack.equilibrium import EquilibriumCriteria
 from granpack.errors import InputError
@@ -56,6 +58,9 @@ class AnalysisOptions:
         gap_tol: gap tolerance of the cross-check contact types, in d.
         rank_tol: rank tolerance of the contact types, in units of the smallest grain size.
         criteria: equilibrium tolerances.
+        sieves: sieve sizes (d) of the size classes of a packing of several sizes; default
+            :data:`~granpack.analysis.size_classes.DEFAULT_CLASSES` classes from the smallest to
+            the largest grain.
     """
 
     n_bottom: float = 2.0
@@ -67,6 +72,7 @@ class AnalysisOptions:
     rdf_partials: bool = False
     force_tol: float = 1e-9
     point_tol: float = 1e-3
+    sieves: tuple[float, ...] | None = None
     gap_tol: float = 1e-4
     rank_tol: float = 1e-3
     criteria: EquilibriumCriteria = field(default_factory=EquilibriumCriteria)
@@ -139,6 +145,13 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         warnings.warn(m, AnalysisWarning, stacklevel=2)
 
     co, order, rdf = computed["coordination"], computed["order"], computed["pair_correlation"]
+    sizes = 2.0 * packing.state.radius
+    several_sizes = packing.n_particles > 0 and sizes.max() > sizes.min() * (1 + 1e-9)
+    if several_sizes:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            classes = SizeClasses(opt.sieves, opt.layer_thickness, z_range, coordination=co).compute(packing)
+        messages += [f"size_classes: {m}" for m in classes.warnings]
     eq, ip, hom = computed["equilibrium"], computed["interpenetration"], computed["homogeneity"]
     k = ip.expansion_k
     rdf_out = {
@@ -216,6 +229,18 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             "bulk_std": hom.bulk_std,
             "segregated_layers": {name: int((flags & hom.bulk_layers).sum()) for name, flags in hom.segregated.items()},
         },
+        **({"size_classes": {
+            "sieves": classes.edges,
+            "passing": classes.passing,
+            "passing_bulk": classes.passing_bulk,
+            "counts": classes.counts,
+            "volume_shares": classes.volume_shares,
+            "bulk_counts": classes.bulk_counts,
+            "coordination": classes.coordination_by_class,
+            "rattler_fraction": classes.rattler_fraction_by_class,
+            "z": classes.z,
+            "profile": classes.profile,
+        }} if several_sizes else {}),
         "warnings": messages,
     }
 
