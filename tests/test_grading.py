@@ -248,3 +248,80 @@ def test_an_analysis_reports_size_classes_for_a_packing_of_several_sizes_only():
         result = analyze_packing(two_sizes_stacked()[0], AnalysisOptions(sieves=(0.4, 0.75, 1.0)))
         assert result["size_classes"]["counts"].tolist() == [64, 64]
         assert "size_classes" not in analyze_packing(sphere_column(4, 8))
+
+
+# --- grains of very different sizes, hand-built ----------------------------------------------------
+
+
+def hexagonal_layer_with(small_positions, small_diameters, rows: int = 4, columns: int = 4):
+    """A periodic hexagonal layer of touching unit spheres on the wall (each held by its six
+    neighbours, so the layer cannot spread) and small spheres placed at ``small_positions``."""
+    from granpack import Box, ShapeTable, Sphere
+    from granpack.state import ParticleState
+
+    pitch = math.sqrt(3.0) / 2.0
+    big = [[c + 0.5 * (r % 2) + 0.25, (r + 0.5) * pitch, 0.5] for r in range(rows) for c in range(columns)]
+    positions = np.array(big + [list(p) for p in small_positions], dtype=float)
+    shapes = ShapeTable.from_shapes([Sphere(1.0)] + [Sphere(d) for d in small_diameters])
+    kind = np.array([0] * len(big) + list(range(1, len(small_diameters) + 1)))
+    n = len(positions)
+    return ParticleState(box=Box(float(columns), rows * pitch), shapes=shapes, kind=kind, population=(kind > 0).astype(int),
+                         position=positions, quaternion=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))), len(big)
+
+
+def forces_on(contacts, body: int, h: float) -> list[np.ndarray]:
+    """The resultant force on ``body`` of each of its contact manifolds."""
+    out = []
+    for k in range(contacts.n_manifolds):
+        points = slice(contacts.point_start[k], contacts.point_start[k + 1])
+        force = contacts.impulse[points].sum(axis=0) / h
+        if contacts.body_i[k] == body:
+            out.append(force)
+        elif contacts.body_j[k] == body:
+            out.append(-force)
+    return out
+
+
+def test_a_ball_of_a_tenth_rests_on_a_ball_of_d_carrying_its_weight():
+    from granpack.nscd import StepParameters, step
+
+    top = [1.25, 0.5 * math.sqrt(3.0) / 2.0, 1.0 + 0.05 + 1e-3]  # above the first big ball, 1e-3 d clear
+    state, n_big = hexagonal_layer_with([top], [0.1])
+    params, warm = StepParameters(), None
+    for _ in range(400):
+        warm, _ = step(state, params, warm)
+    small = n_big
+    assert state.position[small, 2] == pytest.approx(1.05, abs=2e-6)
+    np.testing.assert_allclose(state.position[small, :2], top[:2], atol=1e-9)
+    forces = forces_on(warm, small, params.time_step)
+    assert len(forces) == 1 and forces[0] == pytest.approx([0.0, 0.0, state.mass[small]], rel=1e-6, abs=1e-12)
+    on_wall = np.repeat(warm.body_j == -1, np.diff(warm.point_start))
+    assert warm.impulse[on_wall, 2].sum() / params.time_step == pytest.approx(state.mass.sum(), rel=1e-6)
+
+
+def test_a_ball_of_a_fifth_rests_in_the_crevice_of_three_balls_of_d():
+    """The crevice above three touching unit balls: a ball of diameter below 2 (1/sqrt(3) - 1/2) =
+    0.155 d falls through it; one of 0.2 d rests at the height h with (1/sqrt(3))^2 + h^2 = 0.6^2
+    above their centres, each of the three contacts carrying m g / (3 cos theta), cos theta = h / 0.6."""
+    from granpack.nscd import StepParameters, step
+
+    pitch = math.sqrt(3.0) / 2.0
+    # the crevice between the balls (0, 0), (1, 0) of row 0 and (0, 0) of row 1 (shifted by 1/2)
+    centres = np.array([[0.25, 0.5 * pitch], [1.25, 0.5 * pitch], [0.75, 1.5 * pitch]])
+    axis = centres.mean(axis=0)
+    h = math.sqrt(0.6 ** 2 - 1.0 / 3.0)
+    state, n_big = hexagonal_layer_with([[axis[0], axis[1], 0.5 + h + 2e-3]], [0.2])
+    params, warm = StepParameters(), None
+    for _ in range(600):
+        warm, _ = step(state, params, warm)
+    small = n_big
+    assert state.position[small, 2] == pytest.approx(0.5 + h, abs=5e-6)
+    np.testing.assert_allclose(state.position[small, :2], axis, atol=1e-7)
+    forces = forces_on(warm, small, params.time_step)
+    loaded = [f for f in forces if np.linalg.norm(f) > 1e-9]
+    assert len(loaded) == 3
+    magnitude = state.mass[small] / (3.0 * h / 0.6)
+    for f in loaded:
+        assert np.linalg.norm(f) == pytest.approx(magnitude, rel=1e-5)
+    assert np.sum(loaded, axis=0) == pytest.approx([0.0, 0.0, state.mass[small]], rel=1e-6, abs=1e-9)
+    np.testing.assert_allclose(state.position[:n_big, 2], 0.5, atol=1e-5)  # the layer holds
