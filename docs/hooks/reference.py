@@ -167,6 +167,15 @@ def config_reference() -> str:
         "The shares of all populations must sum to 1 (within "
         f"{config.SHARE_TOLERANCE:g}) and their names must differ. How shares become grain counts:",
         "[Method > Grains](../method/grains.md#mixtures-volume-shares-to-counts).",
+        "",
+        "## `[populations.grading]`",
+        "",
+        _doc(config.GradingConfig),
+        "The table follows its `[[populations]]` table; the population then has no `size`. Each curve takes",
+        "its own keys: `fuller` `d_min`, `d_max`, `exponent`; `sieves` `sieves`, `percent_passing` and",
+        "optionally `sieve_unit`; `lognormal` `mean`, `polydispersity` and optionally `cut`.",
+        "",
+        *_model_table(config.GradingConfig),
     ]
     for name, model in tables:
         lines += ["", f"## `[{name}]`", "", _doc(model), "", *_model_table(model)]
