@@ -180,6 +180,16 @@ def test_a_graded_pile_pours_and_its_final_state_reads_back(tmp_path):
     sizes = 2 * packing.state.radius
     np.testing.assert_allclose(np.sort(sizes), np.sort(mixture.sizes[0]), rtol=1e-12)
     np.testing.assert_allclose(packing.state.mass, (packing.state.shapes.shapes[0].volume * sizes ** 3), rtol=1e-12)
+    # its analysis has the size classes, its figures the sieve curve and the classes' profiles
+    from granpack.analysis.report import analyze_run
+    from granpack.figures import run_figures
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = analyze_run(tmp_path)
+    assert sum(result["size_classes"]["counts"]) == 200 and result["populations"][0]["sizes"]["max"] <= 1.0
+    files = run_figures(tmp_path)
+    assert {p.name for p in files} >= {"grading.png", "grading.svg"}
 
 
 def two_sizes_stacked(base=None):

@@ -326,11 +326,63 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
         written += save_figure(fig, out, "homogeneity")
 
     final = run_dir / "final.gsd"
-    if final.is_file():
-        written += save_figure(render_packing(read_packing(final)), out, "packing")
+    packing = read_packing(final) if final.is_file() else None
+    if "size_classes" not in analysis:
+        written.skipped["grading"] = "the grains have one size"
+    elif packing is None:
+        written.skipped["grading"] = f"no {final.name} in {run_dir}"
+    else:
+        written += save_figure(_grading_figure(run_dir, analysis, packing), out, "grading")
+    if packing is not None:
+        written += save_figure(render_packing(packing), out, "packing")
     else:
         written.skipped["packing"] = f"no {final.name} in {run_dir}"
     return written
+
+
+def _grading_figure(run_dir: Path, analysis: dict, packing) -> Figure:
+    """Left: the sieve curve requested (each graded population of the run's config), poured and in
+    the bulk; right: each size class's share of the solid volume against the height."""
+    from granpack.config import load_config
+    from granpack.grading import achieved_passing
+
+    fig = Figure(figsize=(10, 4.5))
+    ax, ax_z = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    state = packing.state
+    size, volume = 2.0 * state.radius, state.mass
+    grid = np.geomspace(size.min(), size.max(), 200)
+    config_path = run_dir / "config.toml"
+    if config_path.is_file():
+        config = load_config(config_path)
+        graded = [p for p in config.populations if p.grading is not None]
+        if len(config.populations) == 1 and graded:
+            ax.semilogx(grid, 100 * graded[0].grading_curve.passing_at(grid), color="k", linestyle=":", linewidth=1.5,
+                        zorder=3, label=f"requested ({graded[0].grading.curve})")
+    ax.semilogx(grid, 100 * achieved_passing(size, volume, grid), color="C0", label="poured")
+    bulk = analysis.get("bulk", {})
+    if bulk.get("valid"):
+        z = state.position[:, 2]
+        inside = (z >= bulk["z_bottom"]) & (z <= bulk["z_top"])
+        if inside.any():
+            ax.semilogx(grid, 100 * achieved_passing(size[inside], volume[inside], grid), color="C1", linestyle="--",
+                        label="bulk")
+    ax.set_xlabel("sieve size D (d)")
+    ax.set_ylabel("% passing by volume")
+    ax.set_ylim(-2, 102)
+    ax.legend()
+    classes = analysis["size_classes"]
+    sieves, z = _array(classes["sieves"]), _array(classes["z"])
+    profile = np.atleast_2d(_array(classes["profile"]))
+    for k in range(len(sieves) - 1):
+        ax_z.plot(profile[k], z, marker=".", color=f"C{k}", label=f"{sieves[k]:.3g} - {sieves[k + 1]:.3g} d")
+        share = _array(classes["volume_shares"])[k]
+        ax_z.axvline(share, color=f"C{k}", linewidth=0.8, linestyle=":")
+    ax_z.set_xlabel("share of the layer's solid volume")
+    ax_z.set_ylabel("height z (d)")
+    ax_z.set_xlim(-0.02, 1.02)
+    ax_z.legend(title="size class", fontsize=8)
+    fig.tight_layout()
+    return fig
 
 
 # --------------------------------------------------------------------------- campaign
