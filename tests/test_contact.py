@@ -507,7 +507,7 @@ def test_symmetric_separating_axis_test_equals_the_general_one(rng):
 
 def _axis_of_code(state, code, a, b) -> np.ndarray:
     """World unit axis of a separating-axis code of the pair (A = ``a``, B = ``b``): face axes of
-    A, then of B, then the edge-direction pairs of A and B, row-major (``narrowphase._sat``)."""
+    A, then of B, then the edge-direction pairs of A and B, row-major (``separating_axes._sat``)."""
     s = state.shapes
 
     def axes(body):
@@ -968,7 +968,7 @@ def test_polyhedra_gap_property(names, seed, target):
 
 
 def test_merge_points_drops_only_duplicates_and_keeps_the_deeper_gap():
-    from granpack.contact.narrowphase import _merge_points
+    from granpack.contact.manifold import _merge_points
 
     angles = np.arange(8) * math.pi / 4 + 0.1
     ring = np.c_[np.cos(angles), np.sin(angles), np.full(8, 0.3)]
