@@ -274,7 +274,8 @@ EXAMPLE_FILES = [p for p in sorted(EXAMPLES.glob("*.toml")) if "mixtures" not in
 @pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
 def test_examples_load(path):
     cfg = load_config(path)
-    assert cfg.n_particles == (300 if path.name == "demo.toml" else 3000)
+    # the study's 3000 grains; the demo's 300; the graded aggregate's 5000 (its coarse fractions within 0.3 %)
+    assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000}.get(path.name, 3000)
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
@@ -289,7 +290,7 @@ def test_examples_readme_lists_every_example():
 def test_example_lateral_sizes_and_families():
     lateral = {p.name: load_config(p).lateral_size for p in EXAMPLE_FILES}
     # cells narrowed for a bulk region (tests/test_examples.py): the study's 8 d where it leaves one
-    assert lateral == {"demo.toml": 3.0, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
+    assert lateral == {"demo.toml": 3.0, "aggregate-4-22.toml": 2.5, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
                        "pinacoids-flat-elongated.toml": 4.0, "pinacoids-flat.toml": 5.5,
                        "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0}
     aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
