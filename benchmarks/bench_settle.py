@@ -35,7 +35,8 @@ import time
 from pathlib import Path
 
 from granpack.config import load_config_dict
-from granpack.simulation import TIMELINE_FILE, run_packing
+from granpack.io.run_folder import TIMELINE_FILE
+from granpack.simulation import run_packing
 
 LEVEL_ONE = {"max_net_force": 1e-3, "max_net_torque": 1e-3, "kinetic_criterion": 1e-7, "wall": 5e-3}
 

@@ -28,7 +28,8 @@ TIMELINE_COLUMNS = (
     "corrected_steps", "correction_sweeps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
     "wall_seconds", "cpu_seconds",
 )
-#: the running totals kept after the columns in each row, from which the next row's interval sums come
+#: the running totals kept after the columns in each row, from which the next row's interval sums
+#: come: fields of :class:`SolverTotals`, then the potential energy
 _TOTALS = ("solves", "iterations_total", "unconverged_steps", "correction_steps", "correction_iterations",
            "correction_energy", "damped_energy", "potential_energy")
 _POTENTIAL_COLUMN = TIMELINE_COLUMNS.index("potential_energy_change")
@@ -165,8 +166,7 @@ def timeline_row(record: RunRecord, state: ParticleState, contacts: ContactSet, 
     """The timeline row of this check (interval sums from the previous row's running totals); starts
     the next interval's largest sweep count afresh."""
     t, m = record.totals, record.milestones
-    totals = (t.solves, t.iterations_total, t.unconverged_steps, t.correction_steps, t.correction_iterations,
-              t.correction_energy, t.damped_energy, potential_energy(state))
+    totals = (*(getattr(t, name) for name in _TOTALS[:-1]), potential_energy(state))
     # the first check has no previous potential energy: its change is NaN
     previous = record.timeline[-1][len(TIMELINE_COLUMNS):] if record.timeline else (0,) * (len(totals) - 1) + (math.nan,)
     d = [a - b for a, b in zip(totals, previous)]
