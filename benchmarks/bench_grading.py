@@ -3,8 +3,9 @@
 Frictionless spheres on a Fuller curve (exponent 0.5) between ``d_max / ratio`` and ``d_max``, in
 a cell sized so that the settled bed stands about ``HEIGHT`` d_max high (at least 2.5 d wide).
 Each case is one `granpack run` (defaults but for the mixture and the cap on the simulated time);
-it prints one JSON object per case: steps, wall and CPU seconds, milliseconds per step (all, and
-detection and solver apart), contacts at the end, status and time at rest.
+it prints one JSON object per case: steps, wall and CPU seconds, milliseconds per step (wall and
+CPU, and detection and solver apart), contacts at the end, status and time at rest. On a machine
+with other work beside it, compare the CPU milliseconds.
 
 - ``ratio-1``, ``ratio-3``, ``ratio-10``: N = 3000, poured and settled for ``--time`` (default 10)
   sqrt(d/g): the cost of a step at each size ratio, at the same N;
@@ -76,6 +77,7 @@ def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int)
         "simulated_time": summary["simulated_time"], "steps": summary["steps"],
         "wall_seconds": wall, "cpu_seconds": cpu, "deposit_seconds": summary["timing"]["deposit_seconds"],
         "ms_per_step": 1e3 * settle / steps,
+        "cpu_ms_per_step": 1e3 * cpu / steps,
         "detection_ms_per_step": summary["timing"]["detection_ms_per_step"],
         "solver_ms_per_step": summary["timing"]["solver_ms_per_step"],
         "split_steps": summary["split_steps"], "mean_sweeps": summary["nlgs"]["mean_iterations"],
