@@ -42,7 +42,7 @@ import math
 import numpy as np
 
 from granpack.analysis._base import Compute, result
-from granpack.analysis.solid_fraction import bulk_range
+from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.contact.contacts import contact_types
 from granpack.packing import Packing
 
@@ -237,13 +237,7 @@ class Coordination(Compute):
     def compute(self, packing: Packing) -> "Coordination":
         """Count the contacts of the bulk grains of ``packing``."""
         self._start()
-        state = packing.state
-        if self.z_range is None:
-            z_bot, z_top, valid = bulk_range(packing)
-        else:
-            (z_bot, z_top), valid = self.z_range, self.z_range[1] > self.z_range[0]
-        z = state.position[:, 2]
-        analysed = (z >= z_bot) & (z <= z_top) if valid else np.zeros(state.n, bool)
+        analysed = in_region(packing, analysed_region(packing, self.z_range))
         active = force_bearing(packing, self.force_tol)
         types = type_rules(packing, self.point_tol, self.gap_tol, self.rank_tol)
         self._n = int(analysed.sum())

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from granpack.analysis._base import Compute, result
-from granpack.analysis.solid_fraction import bulk_range, slice_volumes
+from granpack.analysis.solid_fraction import analysed_region, slice_volumes
 from granpack.packing import Packing
 
 __all__ = ["Homogeneity"]
@@ -75,10 +75,7 @@ class Homogeneity(Compute):
             self._se = np.sqrt(spread[:, None] / self._count[None, :]) / (x * v).sum()
         self._segregated = np.abs(self._p - self._nominal[:, None]) > 3.0 * self._se
 
-        if self.z_range is None:
-            z_bot, z_top, valid = bulk_range(packing)
-        else:
-            (z_bot, z_top), valid = self.z_range, self.z_range[1] > self.z_range[0]
+        z_bot, z_top, valid = analysed_region(packing, self.z_range)
         edges = np.arange(nlayers + 1) * t
         self._bulk_layers = (edges[:-1] >= z_bot - 1e-12) & (edges[1:] <= z_top + 1e-12) if valid else np.zeros(nlayers, bool)
         if not valid:

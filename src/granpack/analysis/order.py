@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from granpack.analysis._base import Compute, result
-from granpack.analysis.solid_fraction import bulk_range
+from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.packing import Packing
 from granpack.rotations import quat_to_matrix, random_quaternions
 
@@ -116,14 +116,9 @@ class Order(Compute):
         if self.population is not None:
             mask &= state.population == self.population
         if self.bulk:
-            if self.z_range is None:
-                z_bot, z_top, valid = bulk_range(packing)
-            else:
-                (z_bot, z_top), valid = self.z_range, self.z_range[1] > self.z_range[0]
-            if not valid:
-                mask[:] = False
-            z = state.position[:, 2]
-            mask &= (z >= z_bot) & (z <= z_top)
+            region = analysed_region(packing, self.z_range)
+            valid = region[2]
+            mask &= in_region(packing, region)
         self._n = int(mask.sum())
         self._q00 = self._q22 = math.nan
         self._director = np.full(3, math.nan)

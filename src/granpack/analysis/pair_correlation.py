@@ -32,7 +32,7 @@ import numpy as np
 
 from granpack.analysis._base import Compute, result
 from granpack.analysis._kernels import pair_histogram_kernel
-from granpack.analysis.solid_fraction import bulk_range
+from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.packing import Packing
 
 __all__ = ["PairCorrelation", "ball_in_slab"]
@@ -110,11 +110,8 @@ class PairCorrelation(Compute):
             z_b, z_t, valid = 0.0, float(self.periodic_z), True
             members = np.ones(state.n, bool)
         else:
-            if self.z_range is None:
-                z_b, z_t, valid = bulk_range(packing)
-            else:
-                (z_b, z_t), valid = self.z_range, self.z_range[1] > self.z_range[0]
-            members = (z >= z_b) & (z <= z_t) if valid else np.zeros(state.n, bool)
+            z_b, z_t, valid = region = analysed_region(packing, self.z_range)
+            members = in_region(packing, region)
         refs = members.copy()
         if self.interior_only and self.periodic_z is None:
             refs &= (z >= z_b + r_max) & (z <= z_t - r_max)

@@ -20,7 +20,7 @@ import numpy as np
 
 from granpack.analysis._base import Compute, result
 from granpack.analysis.coordination import Coordination
-from granpack.analysis.solid_fraction import bulk_range, slice_volumes
+from granpack.analysis.solid_fraction import analysed_region, in_region, slice_volumes
 from granpack.packing import Packing
 
 __all__ = ["SizeClasses", "DEFAULT_CLASSES"]
@@ -71,12 +71,10 @@ class SizeClasses(Compute):
         if outside.any():
             self._warn(f"{int(outside.sum())} grains lie outside the sieves {edges[0]:.4g} .. {edges[-1]:.4g} d: "
                        "counted in the first or last class")
-        if self.z_range is None:
-            z_bot, z_top, valid = bulk_range(packing)
-        else:
-            (z_bot, z_top), valid = self.z_range, self.z_range[1] > self.z_range[0]
+        region = analysed_region(packing, self.z_range)
+        z_bot, z_top, valid = region
+        bulk = in_region(packing, region)
         z = state.position[:, 2]
-        bulk = (z >= z_bot) & (z <= z_top) if valid else np.zeros(state.n, bool)
         self._edges, self._class = edges, in_class
         self._passing = _passing(size, volume, edges)
         self._passing_bulk = _passing(size[bulk], volume[bulk], edges) if bulk.any() else np.full(len(edges), math.nan)

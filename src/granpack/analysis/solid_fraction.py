@@ -235,6 +235,22 @@ class SolidFraction(Compute):
         return ax
 
 
+def analysed_region(packing: Packing, z_range: tuple[float, float] | None = None) -> tuple[float, float, bool]:
+    """``(z_bottom, z_top, valid)`` of the region an analysis reads: ``z_range`` when given (valid
+    when not empty), else the default bulk region (:func:`bulk_range`)."""
+    if z_range is None:
+        return bulk_range(packing)
+    return float(z_range[0]), float(z_range[1]), z_range[1] > z_range[0]
+
+
+def in_region(packing: Packing, region: tuple[float, float, bool]) -> np.ndarray:
+    """``(N,)`` True for the grains whose centres lie in ``region``, an :func:`analysed_region`
+    (none if it is not valid)."""
+    z_bot, z_top, valid = region
+    z = packing.state.position[:, 2]
+    return (z >= z_bot) & (z <= z_top) if valid else np.zeros(packing.state.n, bool)
+
+
 def bulk_range(packing: Packing, n_bottom: float = 2.0, n_top: float = 2.0) -> tuple[float, float, bool]:
     """``(z_bottom, z_top, valid)`` of the default bulk region (see :class:`SolidFraction`)."""
     import warnings
