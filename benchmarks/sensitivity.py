@@ -7,7 +7,8 @@ this script (``configs``), so that a varied run differs from its reference in th
 its factor names:
 
 - ``regime-lmgc``: the contact regime of the study's engine, overlaps left as the velocity-level
-  law leaves them (``recovery_rate = 0``, ``overlap_slop = pour_overlap_slop = 0``);
+  law leaves them (``overlap.recovery_rate = 0``, ``overlap.projection_slop =
+  overlap.pour_projection_slop = 0``);
 - ``cell-study``: the study's cells, 8 d for flat and flat & elongated grains, 10 d for
   elongated ones, with the same 3000 grains (thin beds);
 - ``width-x3``: three times the cell area and three times the grains (9000);
