@@ -49,8 +49,10 @@ PHASES = ("collapse", "end game", "settle", "certify")
 STATUS_AT_REST = "equilibrium"
 STATUS_NOT_AT_REST = "not at rest"
 
-#: Verlet skin of the broad phase, as a fraction of the smallest grain size
+#: Verlet skin of the broad phase, as a fraction of the smallest grain size ...
 _SKIN_FRACTION = 0.1
+#: ... but at least this fraction of the largest (a wide grading: docs/design-notes.md, Gradings)
+_SKIN_FLOOR = 1.0 / 32.0
 
 
 def step_parameters(config: RunConfig) -> StepParameters:
@@ -103,7 +105,7 @@ class Settling:
         d_min = 2.0 * float(state.shapes.radius.min())
         d_max = 2.0 * float(state.shapes.radius.max())
         room = 0.5 * config.lateral_size - d_max - 1e-9  # one periodic image per pair: alert + skin < room
-        skin = max(0.0, min(_SKIN_FRACTION * d_min, 0.25 * (room - self.params.alert)))
+        skin = max(0.0, min(max(_SKIN_FRACTION * d_min, _SKIN_FLOOR * d_max), 0.25 * (room - self.params.alert)))
         self.ceiling = max(self.params.alert, room - skin)  # the largest alert distance of a step
         self.detector = Detector(skin=skin)
         eq = config.equilibrium
