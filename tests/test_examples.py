@@ -28,7 +28,7 @@ def _expected_column(config) -> float:
 
 
 def test_the_examples_are_found():
-    assert len(RUN_CONFIGS) >= 8 and {p.name for p in CAMPAIGNS} == {"study.toml", "study-small.toml"}
+    assert len(RUN_CONFIGS) >= 8 and {p.name for p in CAMPAIGNS} == {"study.toml", "study-small.toml", "grading.toml"}
 
 
 @pytest.mark.parametrize("path", RUN_CONFIGS, ids=lambda p: p.name)

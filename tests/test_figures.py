@@ -226,3 +226,36 @@ def test_the_order_figure_shows_the_deposit_before_gravity_beside_the_final_orde
     assert "flat pinacoids: initial state" in labels and "flat pinacoids" in labels
     dashed = [line for ax in fig.axes for line in ax.get_lines() if line.get_linestyle() == "--"]
     assert dashed and all(np.allclose(line.get_ydata(), 0.02) for line in dashed)
+
+
+def test_a_campaign_of_gradings_draws_its_solid_fraction_against_the_exponent(campaign_dir):
+    """The runs table's grading columns (Fuller exponents here) give one more figure; a campaign
+    without gradings does not have it."""
+    runs = pd.read_csv(campaign_dir / "runs.csv")
+    assert "solid_fraction_vs_grading" not in {p.stem for p in campaign_figures(campaign_dir)}
+    runs["grading"] = np.where(runs["family"] == "flat", "", "fuller")
+    runs["grading_parameter"] = np.where(runs["family"] == "flat", np.nan, 0.3 + runs["share"])
+    runs.to_csv(campaign_dir / "runs.csv", index=False)
+    from granpack.figures import _versus_grading
+
+    fig = _versus_grading(_read_runs(campaign_dir))
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "Fuller exponent n" and len(ax.get_legend().get_texts()) == 2
+    paths = campaign_figures(campaign_dir)
+    _check_images([p for p in paths if p.stem == "solid_fraction_vs_grading"])
+    runs["solid_fraction.bulk"] = np.nan
+    runs.to_csv(campaign_dir / "runs.csv", index=False)
+    assert "solid_fraction_vs_grading" in campaign_figures(campaign_dir).skipped
+
+
+def test_the_runs_table_names_each_runs_grading():
+    from granpack.campaign.spec import campaign_from_dict
+    from granpack.campaign.store import grading_of
+
+    spec = campaign_from_dict({"mixtures": [
+        {"name": "fuller", "populations": [{"shape": "sphere", "volume_fraction": 1.0, "grading": {
+            "curve": "fuller", "d_min": 0.25, "d_max": 1.0, "exponent": 0.45}}]},
+        {"name": "one-size", "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}]}]})
+    assert grading_of(spec.runs[0]) == ("fuller", 0.45)
+    curve, value = grading_of(spec.runs[1])
+    assert curve == "" and math.isnan(value)

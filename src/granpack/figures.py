@@ -620,6 +620,28 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
     return fig
 
 
+def _versus_grading(runs: pd.DataFrame) -> Figure | None:
+    """Bulk solid fraction against the grading's parameter (Fuller exponent or lognormal
+    polydispersity), mean and standard deviation over the replicas, one line per family and curve."""
+    graded = runs[runs["grading_parameter"].notna() & runs["solid_fraction.bulk"].notna()]
+    if not len(graded):
+        return None
+    fig = Figure(figsize=(6, 4.5))
+    ax = fig.add_subplot()
+    labels = {"fuller": "Fuller exponent n", "lognormal": "polydispersity δ"}
+    for k, ((family, curve), rows) in enumerate(graded.groupby(["family", "grading"], sort=False, dropna=False)):
+        stats = rows.groupby("grading_parameter")["solid_fraction.bulk"].agg(["mean", "std"]).reset_index()
+        ax.errorbar(stats["grading_parameter"], stats["mean"], yerr=stats["std"].fillna(0.0), marker="o", capsize=3,
+                    color=f"C{k}", label=f"{family or 'runs'} ({curve})")
+    curves = sorted(set(graded["grading"]))
+    ax.set_xlabel(" / ".join(labels.get(c, c) for c in curves))
+    ax.set_ylabel("bulk solid fraction φ")
+    ax.set_title("Solid fraction against the grading")
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    return fig
+
+
 def _campaign_skip_reason(stem: str, runs: pd.DataFrame, chosen: pd.DataFrame) -> str:
     """Why a campaign figure has nothing to show."""
     if not len(runs):
@@ -640,6 +662,8 @@ def _campaign_skip_reason(stem: str, runs: pd.DataFrame, chosen: pd.DataFrame) -
         return "no finished run has a g(r) (empty when a run has no bulk region)"
     if stem == "homogeneity":
         return "no mixture has a second population (the figure shows the substituted grains)"
+    if stem == "solid_fraction_vs_grading":
+        return "no run of a Fuller or lognormal grading has a bulk solid fraction"
     return "nothing to draw"
 
 
@@ -669,6 +693,8 @@ def campaign_figures(campaign_dir: str | Path, mixtures: Iterable[str] | None = 
         "pair_correlation": _pair_correlation_figure(campaign_dir, chosen),
         "homogeneity": _homogeneity_figure(campaign_dir, chosen),
     }
+    if "grading_parameter" in runs and runs["grading_parameter"].notna().any():  # a campaign of gradings
+        figures["solid_fraction_vs_grading"] = _versus_grading(runs)
     written = FigureFiles()
     for stem, fig in figures.items():
         if fig is not None:

@@ -12,11 +12,14 @@ run is never recomputed. The tables are always rebuilt from the folders, so they
 is on disk:
 
 - ``runs.csv`` / ``runs.parquet``: one row per run: ``path, mixture, family, share, shapes,
-  replica, seed, status, error``, then every scalar of ``analysis.json`` flattened with dots
+  replica, seed, status, error``, the substituted grains in words (``substituted``), the curve of
+  the first graded population and its exponent or polydispersity (``grading``,
+  ``grading_parameter``; empty and NaN without one), then every scalar of ``analysis.json`` flattened with dots
   (``solid_fraction.bulk``, ``coordination.N``, ``order.Q00``, ...; lists such as profiles are
   left out) and every scalar of ``summary.json`` prefixed ``run.``. ``status`` is ``done``,
   ``failed`` (see ``error``) or ``missing`` (not run yet, or interrupted).
-- ``summary.csv``: one row per mixture: ``mixture, family, share, shapes, n_done, n_failed``, then
+- ``summary.csv``: one row per mixture: ``mixture, family, share, grading, grading_parameter,
+  shapes, n_done, n_failed``, then
   ``<column>.mean`` and ``<column>.std`` (sample standard deviation over the replicas, NaN with
   one replica) of every numeric column over the ``done`` runs.
 """
@@ -71,7 +74,7 @@ ANALYSIS_KEYS = (
 )
 
 _ID_COLUMNS = ("path", "mixture", "family", "share", "shapes", "replica", "seed", "status", "error")
-_NOT_AVERAGED = ("share", "replica", "seed")
+_NOT_AVERAGED = ("share", "grading_parameter", "replica", "seed")
 
 
 def _read_json(path: Path) -> Any:
@@ -199,6 +202,20 @@ def substituted(run: RunSpec) -> str:
     return ""
 
 
+def grading_of(run: RunSpec) -> tuple[str, float]:
+    """The curve of the run's first graded population and its parameter, the Fuller exponent or
+    the lognormal's polydispersity (``("", nan)`` when no population is graded, or for a sieve
+    table, which no single number describes)."""
+    for population in run.config["populations"]:
+        grading = population.get("grading")
+        if isinstance(grading, dict):
+            curve = str(grading.get("curve", ""))
+            key = {"fuller": "exponent", "lognormal": "polydispersity"}.get(curve)
+            value = grading.get(key) if key else None
+            return curve, float(value) if isinstance(value, (int, float)) else math.nan
+    return "", math.nan
+
+
 def run_row(out_dir: Path, run: RunSpec, error: str | None = None) -> dict[str, Any]:
     """The runs-table row of one run, read from its folder.
 
@@ -218,6 +235,8 @@ def run_row(out_dir: Path, run: RunSpec, error: str | None = None) -> dict[str, 
         "family": run.family,
         "share": math.nan if run.share is None else run.share,
         "substituted": substituted(run),
+        "grading": grading_of(run)[0],
+        "grading_parameter": grading_of(run)[1],
         "shapes": run.shapes,
         "replica": run.replica,
         "seed": run.seed,
@@ -272,6 +291,8 @@ def summary_table(runs: pd.DataFrame) -> pd.DataFrame:
             "mixture": mixture,
             "family": group["family"].iloc[0],
             "share": group["share"].iloc[0],
+            "grading": group["grading"].iloc[0] if "grading" in group else "",
+            "grading_parameter": group["grading_parameter"].iloc[0] if "grading_parameter" in group else math.nan,
             "shapes": group["shapes"].iloc[0],
             "n_done": len(done),
             "n_failed": int((group["status"] == "failed").sum()),
