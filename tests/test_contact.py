@@ -415,7 +415,6 @@ def _pair_table(cs: ContactSet) -> dict:
 
 def test_gaps_equal_the_exact_distance_and_penetration_depth(rng):
     state, shapes, exact = random_pairs(rng, 400, gap_range=(-0.03, 0.03))
-    eps_f = 1e-3 * 2.0 * min(s.circumscribed_radius for s in shapes)
     default = _pair_table(detect(state, ALERT))
     sharp = _pair_table(Detector(eps_f=1e-9).detect(state, ALERT))
     n_sep = n_over = n_hysteresis = 0
