@@ -89,7 +89,7 @@ class Milestones:
 
 @dataclass
 class Clock:
-    """Wall and CPU seconds of the run, summed over the sessions of a resumed run."""
+    """Wall and CPU seconds of the run, summed over the commands that ran it (a resumed run)."""
 
     deposit_seconds: float = 0.0
     wall_seconds: float = 0.0
@@ -100,7 +100,7 @@ class Clock:
 
     def start(self, wall_start: float) -> None:
         """Count from now (CPU) and from ``wall_start`` (a ``perf_counter`` reading: the wall time of
-        this session counts from the start of the command, the pour included)."""
+        this command counts from its start, the pour included)."""
         self._wall_before, self._wall_start = self.wall_seconds, wall_start
         self._cpu_before, self._cpu_start = self.cpu_seconds, time.process_time()
 
