@@ -61,6 +61,12 @@ def _layer_available(layer: str) -> bool:
     return proc.returncode == 0 and proc.stdout.strip() == layer
 
 
+def _default_sigint() -> None:
+    """In the child: SIGINT's default action, as a terminal gives a command (a library used by an
+    earlier test, a Dask cluster, may have left SIG_IGN in this process, which a child inherits)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _env(**settings) -> dict:
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
     env.update({k: v for k, v in settings.items() if v is not None})
@@ -112,7 +118,8 @@ def test_a_run_stopped_on_any_threading_layer_exits_130_within_seconds(tmp_path,
     out = tmp_path / "run"
     proc = subprocess.Popen([sys.executable, "-c", _RUN_WITH_NARROW_PHASE_THREADS, "run", str(config), "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=_env(NUMBA_THREADING_LAYER=layer, NUMBA_NUM_THREADS="2"))
+                            env=_env(NUMBA_THREADING_LAYER=layer, NUMBA_NUM_THREADS="2"),
+                            preexec_fn=_default_sigint)
     try:
         # the first checkpoint, at t = 2: the grains touch, the narrow phase runs in two threads; from a
         # cold Numba cache on a loaded 2-core machine it takes some 150 s (compiling), so wait up to 600
