@@ -1,7 +1,9 @@
 """Gradings: the cost of a step against the size ratio, and the time to rest against N.
 
 Frictionless spheres on a Fuller curve (exponent 0.5) between ``d_max / ratio`` and ``d_max``, in
-a cell sized so that the settled bed stands about ``HEIGHT`` d_max high (at least 2.5 d wide).
+a cell sized so that the settled bed stands about ``--height`` d_max high (default 6; ``cube``: as
+tall as wide, so that at the same N the load crosses about as many grains at every ratio), at
+least 2.5 d wide.
 Each case is one `granpack run` (defaults but for the mixture and the cap on the simulated time);
 it prints one JSON object per case: steps, wall and CPU seconds, milliseconds per step (wall and
 CPU, and detection and solver apart), contacts at the end, status and time at rest. On a machine
@@ -15,6 +17,7 @@ with other work beside it, compare the CPU milliseconds.
 Usage::
 
     python benchmarks/bench_grading.py --case ratio-1 --case ratio-10 --time 10
+    python benchmarks/bench_grading.py --case ratio-1 --case ratio-10 --height cube
     python benchmarks/bench_grading.py --case fuller-10000 --out /tmp/grading
 """
 
@@ -32,7 +35,7 @@ from granpack.config import load_config_dict
 from granpack.mixture import Mixture
 from granpack.simulation import run_packing
 
-#: height of the settled bed, in d_max, that sets each case's cell
+#: height of the settled bed, in d_max, that sets each case's cell by default
 HEIGHT = 6.0
 #: solid fraction assumed for that height
 PHI = 0.65
@@ -47,8 +50,8 @@ CASES = {
 }
 
 
-def case_config(name: str, max_time: float, seed: int) -> dict:
-    """The run config of a case, its cell sized for a bed about HEIGHT d_max high."""
+def case_config(name: str, max_time: float, seed: int, height: float | str = HEIGHT) -> dict:
+    """The run config of a case, its cell sized for a bed about ``height`` d_max high (or a cube)."""
     n, ratio, _ = CASES[name]
     population = {"shape": "sphere", "volume_fraction": 1.0}
     if ratio == 1.0:
@@ -58,13 +61,15 @@ def case_config(name: str, max_time: float, seed: int) -> dict:
     raw = {"seed": seed, "n_particles": n, "lateral_size": 8.0, "populations": [population],
            "equilibrium": {"max_time": max_time}}
     volume = float(Mixture.from_config(load_config_dict(raw)).solid_volumes.sum())
-    raw["lateral_size"] = round(max(2.5, math.sqrt(volume / (PHI * HEIGHT))), 3)
+    side = (volume / PHI) ** (1 / 3) if height == "cube" else math.sqrt(volume / (PHI * float(height)))
+    raw["lateral_size"] = round(max(2.5, side), 3)
     return raw
 
 
-def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int) -> dict:
+def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int,
+             height: float | str = HEIGHT) -> dict:
     kind = CASES[name][2]
-    raw = case_config(name, step_time if kind == "step" else max_time, seed)
+    raw = case_config(name, step_time if kind == "step" else max_time, seed, height)
     config = load_config_dict(raw, source=name)
     t0, c0 = time.perf_counter(), time.process_time()
     summary = run_packing(config, out / name, overwrite=True, progress="lines")
@@ -73,7 +78,7 @@ def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int)
     settle = wall - summary["timing"]["deposit_seconds"]
     return {
         "case": name, "n_particles": config.n_particles, "size_ratio": CASES[name][1],
-        "lateral_size": config.lateral_size, "seed": seed, "status": summary["status"],
+        "lateral_size": config.lateral_size, "bed": height, "seed": seed, "status": summary["status"],
         "simulated_time": summary["simulated_time"], "steps": summary["steps"],
         "wall_seconds": wall, "cpu_seconds": cpu, "deposit_seconds": summary["timing"]["deposit_seconds"],
         "ms_per_step": 1e3 * settle / steps,
@@ -92,13 +97,15 @@ def main(argv=None) -> None:
     parser.add_argument("--time", type=float, default=10.0, help="simulated time of the ratio cases, sqrt(d/g)")
     parser.add_argument("--max-time", type=float, default=300.0, help="cap of the cases run to rest, sqrt(d/g)")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--height", type=lambda v: v if v == "cube" else float(v), default=HEIGHT,
+                        help="height of the settled bed in d_max, or 'cube' (as tall as wide)")
     parser.add_argument("--out", type=Path, default=None, help="keep the runs here (default: a temporary folder)")
     args = parser.parse_args(argv)
     names = args.case or ["ratio-1", "ratio-3", "ratio-10"]
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         for name in names:
-            print(json.dumps(run_case(name, out, args.time, args.max_time, args.seed)), flush=True)
+            print(json.dumps(run_case(name, out, args.time, args.max_time, args.seed, args.height)), flush=True)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 #   benchmarks/validation/run.sh OUT CAMPAIGN [PATTERN ...]
 #
 # CAMPAIGN is a file of benchmarks/validation/configs/ without .toml (sensitivity,
-# time-600-seed-1, ...); PATTERNs select its mixtures (granpack campaign --mixture), all if none.
+# time-600-seed-1, rcp, ...) or the path of a campaign file (examples/grading.toml); PATTERNs
+# select its mixtures (granpack campaign --mixture), all if none. WORKERS (default 2) sets the
+# number of runs at once.
 # The kept runs of benchmarks/validation/runs/CAMPAIGN are restored into OUT/CAMPAIGN first (the
 # finished ones are skipped, the checkpointed ones resumed); the runs are saved back every 15
 # minutes and at the end (final.gsd too, for analyses made afterwards: contact types, layers), so
@@ -12,6 +14,10 @@
 set -eu
 out=$1; campaign=$2; shift 2
 here=$(cd "$(dirname "$0")" && pwd)
+case $campaign in
+  *.toml) spec=$(cd "$(dirname "$campaign")" && pwd)/$(basename "$campaign"); campaign=$(basename "$campaign" .toml) ;;
+  *) spec="$here/configs/$campaign.toml" ;;
+esac
 kept="$here/runs/$campaign"
 dir="$out/$campaign"
 mkdir -p "$dir" "$kept"
@@ -21,4 +27,4 @@ set --  $(for p in "$@"; do printf -- '--mixture %s ' "$p"; done)
 ( while sleep 900; do save; done ) &
 saver=$!
 trap 'kill $saver 2>/dev/null; save' EXIT
-granpack campaign "$here/configs/$campaign.toml" --out "$dir" --workers 2 "$@"
+granpack campaign "$spec" --out "$dir" --workers "${WORKERS:-2}" "$@"
