@@ -118,6 +118,16 @@ def test_a_sieve_table_in_mm_scales_its_largest_grains_to_1_d():
     assert halved.populations[0].grading_curve.d_max == pytest.approx(0.5)
 
 
+def test_the_time_step_is_judged_in_the_time_unit_of_the_smallest_grain():
+    def step_warnings(d_min, time_step):
+        config = load_config_dict(graded({**FULLER_KEYS, "d_min": d_min}, time_stepping={"time_step": time_step}))
+        return [note for note in config.advisories() if note.startswith("time_stepping.time_step")]
+
+    assert step_warnings(0.25, 5e-3) == []  # 0.01 sqrt(0.25) = 5e-3
+    assert "d_min = 0.1 d" in step_warnings(0.1, 5e-3)[0]
+    assert step_warnings(0.1, 3e-3) == []  # below 0.01 sqrt(0.1) = 3.16e-3
+
+
 def test_a_graded_config_round_trips_through_its_resolved_toml():
     import tomllib
 

@@ -299,7 +299,8 @@ class TimeSteppingConfig(_Model):
     """
 
     time_step: _Number = _setting(5e-3, "sqrt(d/g)", gt=0, description="Time step h. Rule of thumb: at most "
-                                  "0.01; the overlaps of impacts and the error of the linearised gaps grow with it.")
+                                  "0.01 sqrt(d_min/g), d_min the smallest grain (0.01 for one size); the overlaps of "
+                                  "impacts and the error of the linearised gaps grow with it.")
     theta: _Number = _setting(0.5, ge=0.5, le=1, description="Theta of the scheme, in [0.5, 1]: 0.5 conserves "
                               "the energy of free motion, 1 is the most dissipative.")
     alert_distance: Optional[_Number] = _setting(
@@ -554,9 +555,11 @@ class RunConfig(_Model):
         one line naming the key (``granpack check`` and ``granpack run`` print them as warnings)."""
         notes = []
         h = self.time_stepping.time_step
-        if h > 0.01:
-            notes.append(f"time_stepping.time_step = {h:g} sqrt(d/g) is above 0.01, twice the default 5e-3: the overlaps of "
-                         "impacts and the error of the gaps held linear over a step grow with it")
+        smallest = min(p.smallest_size for p in self.populations)
+        if h > 0.01 * math.sqrt(smallest):
+            notes.append(f"time_stepping.time_step = {h:g} sqrt(d/g) is above 0.01 sqrt(d_min/g) = "
+                         f"{0.01 * math.sqrt(smallest):.3g} (d_min = {smallest:g} d, the smallest grain): the overlaps "
+                         "of impacts and the error of the gaps held linear over a step grow with the step over sqrt(d_min/g)")
         if self.solver.tolerance > 1e-3:
             notes.append(f"solver.tolerance = {self.solver.tolerance:g} is above 1e-3: the contact forces are then "
                          "too inexact for the equilibrium criteria to be met")
