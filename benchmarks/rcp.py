@@ -10,8 +10,8 @@ cube of its standard deviation), both by number, for δ up to 0.4:
 This script compares it with the bulk solid fraction of granpack's poured, frictionless piles at
 rest: the finished runs kept in ``benchmarks/validation/runs/rcp`` (lognormal distributions,
 ``benchmarks/validation/configs/rcp.toml``) and ``benchmarks/validation/runs/grading`` (the
-Fuller spheres of ``examples/grading.toml``), and the one-size spheres of the study campaign
-(``benchmarks/study/spheres-small-0``). δ and S are those of the sizes each run poured,
+Fuller spheres of ``examples/grading.toml``), and the sphere mixtures of the study campaign
+(``benchmarks/study/spheres-small-*``: one size, and d with d/3 in every proportion). δ and S are those of the sizes each run poured,
 recomputed from its config.
 
 Usage::
@@ -34,7 +34,7 @@ from granpack.mixture import Mixture
 
 HERE = Path(__file__).resolve().parent
 RUNS = (HERE / "validation" / "runs" / "rcp", HERE / "validation" / "runs" / "grading",
-        HERE / "study" / "spheres-small-0")
+        *sorted((HERE / "study").glob("spheres-small-*")))
 #: Desmond & Weeks' fit: φ* and the coefficients of δ and S δ²
 PHI_STAR, C1, C2 = 0.634, 0.0658, 0.0857
 #: the largest polydispersity of their fit
@@ -83,14 +83,15 @@ def run_row(run_dir: Path) -> dict | None:
 
 
 def rows() -> list[dict]:
-    """Every finished sphere run of ``RUNS``, sorted by mixture and seed."""
+    """Every finished sphere run of ``RUNS``, by family (the mixture's name without its last
+    part), polydispersity and seed."""
     found = []
     for root in RUNS:
         for analysis in sorted(root.glob("**/analysis.json")):
             row = run_row(analysis.parent)
             if row is not None:
                 found.append(row)
-    return sorted(found, key=lambda r: (r["mixture"], r["seed"]))
+    return sorted(found, key=lambda r: (r["mixture"].rsplit("-", 1)[0], r["delta"], r["mixture"], r["seed"]))
 
 
 def by_mixture(runs: list[dict]) -> list[dict]:
