@@ -52,6 +52,8 @@ ROOT = HERE.parent
 STUDY = ROOT / "examples" / "study.toml"
 CONFIGS = HERE / "validation" / "configs"
 KEPT = HERE / "validation" / "runs"
+#: the campaigns of ``KEPT`` that belong to the sensitivity study (the others are other validations)
+SENSITIVITY_CAMPAIGNS = ("sensitivity", "time-600-seed-*")
 STUDY_RUNS = HERE / "study"
 CSV = HERE / "validation" / "sensitivity.csv"
 #: skin left out of the bed at the floor and below the surface, d
@@ -191,7 +193,8 @@ def rows() -> list[dict]:
                         | {(name, seed) for seed, names in CAPPED.items() for name in names})
     out = [_row(STUDY_RUNS / name / f"seed-{seed}", name, "default", "default") for name, seed in references
            if (STUDY_RUNS / name / f"seed-{seed}" / "analysis.json").is_file()]
-    for path in sorted(KEPT.glob("*/*/seed-*/analysis.json")):
+    kept = [path for campaign in SENSITIVITY_CAMPAIGNS for path in KEPT.glob(f"{campaign}/*/seed-*/analysis.json")]
+    for path in sorted(kept):
         factor, _, mixture = path.parent.parent.name.partition("_")
         out.append(_row(path.parent, mixture, factor, factor.partition("-")[2]))
     return out
