@@ -9,7 +9,7 @@ cube of its standard deviation), both by number, for δ up to 0.4:
 
 This script compares it with the bulk solid fraction of granpack's poured, frictionless piles at
 rest: the finished runs kept in ``benchmarks/validation/runs/rcp`` (lognormal distributions,
-``benchmarks/validation/configs/rcp.toml``) and ``benchmarks/validation/runs/grading`` (the
+``benchmarks/validation/rcp.toml``) and ``benchmarks/validation/runs/grading`` (the
 Fuller spheres of ``examples/grading.toml``), and the sphere mixtures of the study campaign
 (``benchmarks/study/spheres-small-*``: one size, and d with d/3 in every proportion). δ and S are those of the sizes each run poured,
 recomputed from its config.

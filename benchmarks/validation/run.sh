@@ -4,9 +4,9 @@
 #   benchmarks/validation/run.sh OUT CAMPAIGN [PATTERN ...]
 #
 # CAMPAIGN is a file of benchmarks/validation/configs/ without .toml (sensitivity,
-# time-600-seed-1, rcp, ...) or the path of a campaign file (examples/grading.toml); PATTERNs
-# select its mixtures (granpack campaign --mixture), all if none. WORKERS (default 2) sets the
-# number of runs at once.
+# time-600-seed-1, ...) or the path of a campaign file (benchmarks/validation/rcp.toml,
+# examples/grading.toml); PATTERNs select its mixtures (granpack campaign --mixture), all if
+# none. WORKERS (default 2) sets the number of runs at once.
 # The kept runs of benchmarks/validation/runs/CAMPAIGN are restored into OUT/CAMPAIGN first (the
 # finished ones are skipped, the checkpointed ones resumed); the runs are saved back every 15
 # minutes and at the end (final.gsd too, for analyses made afterwards: contact types, layers), so
