@@ -6,8 +6,9 @@ tall as wide, so that at the same N the load crosses about as many grains at eve
 least 2.5 d wide.
 Each case is one `granpack run` (defaults but for the mixture and the cap on the simulated time);
 it prints one JSON object per case: steps, wall and CPU seconds, milliseconds per step (wall and
-CPU, and detection and solver apart), contacts at the end, status and time at rest. On a machine
-with other work beside it, compare the CPU milliseconds.
+CPU, and detection and solver apart), contacts at the end, status and time at rest, and the
+process's peak resident memory so far (run one case per process to read each case's own). On a
+machine with other work beside it, compare the CPU milliseconds.
 
 - ``ratio-1``, ``ratio-3``, ``ratio-10``: N = 3000, poured and settled for ``--time`` (default 10)
   sqrt(d/g): the cost of a step at each size ratio, at the same N;
@@ -27,6 +28,7 @@ import argparse
 import json
 import math
 import platform
+import resource
 import tempfile
 import time
 from pathlib import Path
@@ -87,6 +89,7 @@ def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int,
         "solver_ms_per_step": summary["timing"]["solver_ms_per_step"],
         "split_steps": summary["split_steps"], "mean_sweeps": summary["nlgs"]["mean_iterations"],
         "contacts": summary["final"]["contacts"], "max_overlap": summary["final"]["max_overlap"],
+        "max_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "machine": platform.node(), "date": time.strftime("%Y-%m-%d"),
     }
 
