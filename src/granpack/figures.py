@@ -622,7 +622,10 @@ def _homogeneity_figure(campaign_dir: Path, runs: pd.DataFrame) -> Figure | None
 
 def _versus_grading(runs: pd.DataFrame) -> Figure | None:
     """Bulk solid fraction against the grading's parameter (Fuller exponent or lognormal
-    polydispersity), mean and standard deviation over the replicas, one line per family and curve."""
+    polydispersity), one line per family and curve: the mean over the replicas, with their
+    standard deviation, or for a point of one run the spread of its bulk layers
+    (``solid_fraction.std``), so that a campaign of one replica still shows what a difference
+    between two points is worth."""
     graded = runs[runs["grading_parameter"].notna() & runs["solid_fraction.bulk"].notna()]
     if not len(graded):
         return None
@@ -630,14 +633,19 @@ def _versus_grading(runs: pd.DataFrame) -> Figure | None:
     ax = fig.add_subplot()
     labels = {"fuller": "Fuller exponent n", "lognormal": "polydispersity δ"}
     for k, ((family, curve), rows) in enumerate(graded.groupby(["family", "grading"], sort=False, dropna=False)):
-        stats = rows.groupby("grading_parameter")["solid_fraction.bulk"].agg(["mean", "std"]).reset_index()
-        ax.errorbar(stats["grading_parameter"], stats["mean"], yerr=stats["std"].fillna(0.0), marker="o", capsize=3,
+        by_point = rows.groupby("grading_parameter")
+        stats = by_point["solid_fraction.bulk"].agg(["mean", "std", "count"])
+        layers = by_point["solid_fraction.std"].first()
+        spread = stats["std"].where(stats["count"] > 1, layers).fillna(0.0)
+        ax.errorbar(stats.index, stats["mean"], yerr=spread, marker="o", capsize=3,
                     color=f"C{k}", label=f"{family or 'runs'} ({curve})")
     curves = sorted(set(graded["grading"]))
     ax.set_xlabel(" / ".join(labels.get(c, c) for c in curves))
     ax.set_ylabel("bulk solid fraction φ")
     ax.set_title("Solid fraction against the grading")
     ax.legend(fontsize="small")
+    fig.text(0.01, 0.005, "error bars: standard deviation over the replicas (one run: the spread of its bulk layers)",
+             fontsize="x-small", color="0.4")
     fig.tight_layout()
     return fig
 
