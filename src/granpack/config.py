@@ -556,9 +556,10 @@ class RunConfig(_Model):
         notes = []
         h = self.time_stepping.time_step
         smallest = min(p.smallest_size for p in self.populations)
-        if h > 0.01 * math.sqrt(smallest):
+        largest_step = 0.01 * math.sqrt(smallest)
+        if h > largest_step:
             notes.append(f"time_stepping.time_step = {h:g} sqrt(d/g) is above 0.01 sqrt(d_min/g) = "
-                         f"{0.01 * math.sqrt(smallest):.3g} (d_min = {smallest:g} d, the smallest grain): the overlaps "
+                         f"{largest_step:.3g} (d_min = {smallest:g} d, the smallest grain): the overlaps "
                          "of impacts and the error of the gaps held linear over a step grow with the step over sqrt(d_min/g)")
         if self.solver.tolerance > 1e-3:
             notes.append(f"solver.tolerance = {self.solver.tolerance:g} is above 1e-3: the contact forces are then "
