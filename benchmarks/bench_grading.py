@@ -20,6 +20,7 @@ Usage::
     python benchmarks/bench_grading.py --case ratio-1 --case ratio-10 --time 10
     python benchmarks/bench_grading.py --case ratio-1 --case ratio-10 --height cube
     python benchmarks/bench_grading.py --case fuller-10000 --out /tmp/grading
+    python benchmarks/bench_grading.py --case fuller-30000 --out /tmp/grading --resume   # after a stop
 """
 
 from __future__ import annotations
@@ -69,13 +70,15 @@ def case_config(name: str, max_time: float, seed: int, height: float | str = HEI
 
 
 def run_case(name: str, out: Path, step_time: float, max_time: float, seed: int,
-             height: float | str = HEIGHT) -> dict:
+             height: float | str = HEIGHT, resume: bool = False) -> dict:
     kind = CASES[name][2]
     raw = case_config(name, step_time if kind == "step" else max_time, seed, height)
     config = load_config_dict(raw, source=name)
     t0, c0 = time.perf_counter(), time.process_time()
-    summary = run_packing(config, out / name, overwrite=True, progress="lines")
+    summary = run_packing(config, out / name, resume=resume, overwrite=not resume, progress="lines")
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if resume:  # the run's totals over all its segments, as its clock kept them
+        wall, cpu = summary["wall_time"], summary["cpu_time"]
     steps = max(summary["steps"], 1)
     settle = wall - summary["timing"]["deposit_seconds"]
     return {
@@ -103,12 +106,18 @@ def main(argv=None) -> None:
     parser.add_argument("--height", type=lambda v: v if v == "cube" else float(v), default=HEIGHT,
                         help="height of the settled bed in d_max, or 'cube' (as tall as wide)")
     parser.add_argument("--out", type=Path, default=None, help="keep the runs here (default: a temporary folder)")
+    parser.add_argument("--resume", action="store_true",
+                        help="with --out: continue each case's run from its checkpoint there (a stopped long "
+                             "case); the times reported are the run's totals")
     args = parser.parse_args(argv)
     names = args.case or ["ratio-1", "ratio-3", "ratio-10"]
+    if args.resume and args.out is None:
+        parser.error("--resume needs --out (the folder that holds the runs to continue)")
     with tempfile.TemporaryDirectory() as tmp:
         out = args.out or Path(tmp)
         for name in names:
-            print(json.dumps(run_case(name, out, args.time, args.max_time, args.seed, args.height)), flush=True)
+            print(json.dumps(run_case(name, out, args.time, args.max_time, args.seed, args.height, args.resume)),
+                  flush=True)
 
 
 if __name__ == "__main__":
