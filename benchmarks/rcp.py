@@ -17,7 +17,7 @@ recomputed from its config.
 Usage::
 
     python benchmarks/rcp.py            # one JSON object per run, then one per mixture
-    python benchmarks/rcp.py table      # the markdown table of docs/validation.md, a row per mixture
+    python benchmarks/rcp.py table      # the markdown table of docs/gradings.md, a row per mixture
 """
 
 from __future__ import annotations
