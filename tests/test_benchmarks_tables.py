@@ -139,3 +139,14 @@ def test_the_bed_solid_fraction_leaves_a_skin_at_the_floor_and_the_surface(sensi
     phi = [0.2 if zk < 0.5 else 0.6 if zk < 5.0 else 0.0 for zk in z]
     assert sensitivity._bed_phi(z, phi) == pytest.approx(0.6)
     assert math.isnan(sensitivity._bed_phi(z, [0.0] * len(z)))
+
+
+def test_the_gradings_page_tables_every_kept_run():
+    """docs/gradings.md holds the rows ``python benchmarks/gradings.py table`` prints from the kept
+    runs of the example campaign now (rerun it after a run is added)."""
+    gradings = _script("gradings")
+    found = gradings.rows()
+    assert {r["mixture"] for r in found} >= {f"spheres-fuller-0.{n}" for n in range(3, 8)}
+    page = (BENCHMARKS.parent / "docs" / "gradings.md").read_text(encoding="utf-8")
+    for line in gradings.table(found).splitlines():
+        assert line in page, f"docs/gradings.md is stale: run `python benchmarks/gradings.py table` ({line[:40]})"
