@@ -25,6 +25,7 @@ Usage::
     benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs (final.gsd too) in the repository
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
+    python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
@@ -56,6 +57,7 @@ KEPT = HERE / "validation" / "runs"
 SENSITIVITY_CAMPAIGNS = ("sensitivity", "time-600-seed-*")
 STUDY_RUNS = HERE / "study"
 CSV = HERE / "validation" / "sensitivity.csv"
+FIGURE = ROOT / "docs" / "validation" / "figures" / "sensitivity.png"
 #: skin left out of the bed at the floor and below the surface, d
 BED_SKIN = 1.0
 #: the surface of the bed: the highest level of the profile whose solid fraction is above this
@@ -88,6 +90,18 @@ CAPPED = {
     3: ("elongated-100", "elongated-20", "elongated-36", "flat-12", "pinacoids-small-13", "spheres-small-3"),
 }
 LONGER_CAP = 600.0
+
+#: the study's solid fractions (its text and tables, as docs/validation.md quotes them): mixture ->
+#: (raw phi, its std, phi_min the virtual-work lower bound); None where the study gives none. Its
+#: flat & elongated packing is "slightly above" the one-size isometric 0.676: drawn at 0.676.
+STUDY_PHI = {
+    "pinacoids-small-0": (0.676, 0.004, 0.664),
+    "pinacoids-small-30": (0.769, 0.001, None),
+    "spheres-small-30": (0.726, 0.004, None),
+    "elongated-100": (0.683, 0.012, 0.662),
+    "flat-100": (0.676, 0.001, 0.648),
+    "flat-elongated-100": (0.676, None, 0.654),
+}
 
 
 def _toml(value) -> str:
@@ -231,6 +245,62 @@ def markdown(table: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def figure_cells(table: list[dict]) -> dict[str, dict[str, tuple[float, float, int]]]:
+    """What :func:`figure` draws: mixture -> factor -> (mean phi, std or 0, runs) over the cell's
+    finished runs (as the table counts them), for the mixtures of :data:`STUDY_PHI` that some factor varies. A bed
+    without a bulk region (``cell-study``) counts by its ``phi_bed``."""
+    cells: dict[str, dict[str, list[float]]] = {}
+    for row in table:
+        if row["mixture"] not in STUDY_PHI:
+            continue
+        value = row["phi_bed"] if row["factor"] == "cell-study" else row["phi"]
+        cells.setdefault(row["mixture"], {}).setdefault(row["factor"], []).append(value)
+    varied = {m: c for m, c in cells.items() if set(c) - {"default"}}
+    return {m: {f: (statistics.fmean(v), statistics.stdev(v) if len(v) > 1 else 0.0, len(v)) for f, v in c.items()}
+            for m, c in varied.items()}
+
+
+def figure(table: list[dict], path: Path) -> Path:
+    """The solid fraction of each varied mixture: the default protocol (mean ± std over its
+    seeds), each factor beside it and the study's raw phi and phi_min; a PNG at ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cells = figure_cells(table)
+    mixtures = [m for m in STUDY_PHI if m in cells]
+    factors = ["default"] + sorted({f for c in cells.values() for f in c} - {"default"})
+    fig, ax = plt.subplots(figsize=(7.5, 4.2))
+    width = 0.5 / max(1, len(factors) - 1)
+    for j, factor in enumerate(factors):
+        xs, ys, es = [], [], []
+        for i, mixture in enumerate(mixtures):
+            if factor in cells[mixture]:
+                mean, std, _ = cells[mixture][factor]
+                xs.append(i - 0.3 + j * width)
+                ys.append(mean)
+                es.append(std)
+        ax.errorbar(xs, ys, yerr=es, fmt="o", ms=5, capsize=3, label=factor,
+                    color="black" if factor == "default" else None)
+    raw = [STUDY_PHI[m][:2] for m in mixtures]
+    ax.errorbar([i + 0.35 for i in range(len(mixtures))], [r for r, _ in raw], yerr=[e or 0.0 for _, e in raw],
+                fmt="*", ms=10, color="tab:red", capsize=3, label="study, raw")
+    bounds = [(i, STUDY_PHI[m][2]) for i, m in enumerate(mixtures) if STUDY_PHI[m][2] is not None]
+    if bounds:
+        ax.plot([i + 0.35 for i, _ in bounds], [b for _, b in bounds], "v", mfc="none", color="tab:red", ms=7,
+                linestyle="none", label="study, phi_min")
+    ax.set_xticks(range(len(mixtures)), mixtures, rotation=15)
+    ax.set_ylabel("bulk solid fraction (bed for thin beds)")
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, ncol=2)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def layers(final: Path, thickness: float = 1.0) -> list[dict]:
     """Solid fraction and nematic order Q00 of each ``thickness``-thick layer of a packing, from the
     floor to the top of its highest grain: the profile of a bed too thin for a bulk region. A
@@ -263,6 +333,8 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("configs", help="write the campaign files of benchmarks/validation/configs/")
     sub.add_parser("csv", help="write benchmarks/validation/sensitivity.csv from the kept runs")
     sub.add_parser("table", help="print the markdown table of the kept runs")
+    drawn = sub.add_parser("figure", help="draw the solid fraction of each varied mixture beside the study's")
+    drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders")
     by_layer.add_argument("runs", nargs="+", type=Path)
     by_layer.add_argument("--thickness", type=float, default=1.0, help="layer thickness, d (default 1)")
@@ -274,6 +346,8 @@ def main(argv: list[str] | None = None) -> int:
         table = rows()
         write_csv(table)
         print(f"{len(table)} runs in {CSV.relative_to(ROOT)}", file=sys.stderr)
+    elif args.action == "figure":
+        print(figure(rows(), args.out).relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out)
     elif args.action == "layers":
         for run in args.runs:
             print(f"{run}: z (d), phi, Q00, grains")

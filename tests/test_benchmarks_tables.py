@@ -150,3 +150,22 @@ def test_the_gradings_page_tables_every_kept_run():
     page = (BENCHMARKS.parent / "docs" / "gradings.md").read_text(encoding="utf-8")
     for line in gradings.table(found).splitlines():
         assert line in page, f"docs/gradings.md is stale: run `python benchmarks/gradings.py table` ({line[:40]})"
+
+
+def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sensitivity, tmp_path):
+    def row(mixture, factor, phi, phi_bed=0.5):
+        return {"mixture": mixture, "factor": factor, "phi": phi, "phi_bed": phi_bed, "status": "equilibrium"}
+
+    table = [row("pinacoids-small-0", "default", 0.666), row("pinacoids-small-0", "default", 0.668),
+             row("pinacoids-small-0", "regime-lmgc", 0.669),
+             row("flat-100", "default", 0.645), row("flat-100", "cell-study", 0.9, phi_bed=0.651),
+             row("elongated-100", "default", 0.654),  # no factor yet: not drawn
+             row("elongated-36", "regime-lmgc", 0.66)]  # no study figure: not drawn
+    cells = sensitivity.figure_cells(table)
+    assert set(cells) == {"pinacoids-small-0", "flat-100"}
+    mean, std, runs = cells["pinacoids-small-0"]["default"]
+    assert (mean, runs) == (pytest.approx(0.667), 2) and std == pytest.approx(math.sqrt(2e-6))
+    assert cells["pinacoids-small-0"]["regime-lmgc"] == (0.669, 0.0, 1)
+    assert cells["flat-100"]["cell-study"][0] == 0.651  # a thin bed counts by its bed figure
+    path = sensitivity.figure(table, tmp_path / "f.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
