@@ -27,6 +27,7 @@ Usage::
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd
+    python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
 setting of each cell, seeds 1 and 2 of the same mixtures in ``benchmarks/study/``. ``phi_bed``
@@ -327,6 +328,33 @@ def layers(final: Path, thickness: float = 1.0) -> list[dict]:
     return out
 
 
+def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
+    """Solid fraction and Q00 layer by layer (the :func:`layers` of each run, by label) side by
+    side against the height; a PNG at ``path``: how a thin bed's density and order vary from its
+    floor to its surface."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (left, right) = plt.subplots(1, 2, figsize=(7.5, 4.2), sharey=True)
+    for label, profile in profiles.items():
+        z = [layer["z"] for layer in profile]
+        line, = left.plot([layer["phi"] for layer in profile], z, "o-", ms=4, label=label)
+        right.plot([layer["Q00"] for layer in profile], z, "o-", ms=4, color=line.get_color())
+    left.set_xlabel("solid fraction of the layer")
+    right.set_xlabel("Q00 of the layer")
+    left.set_ylabel("height of the layer's middle (d)")
+    for ax in (left, right):
+        ax.grid(alpha=0.3)
+    left.legend(fontsize=7, loc="lower left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="action", required=True)
@@ -338,6 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders")
     by_layer.add_argument("runs", nargs="+", type=Path)
     by_layer.add_argument("--thickness", type=float, default=1.0, help="layer thickness, d (default 1)")
+    by_layer.add_argument("--figure", type=Path, help="also draw the profiles into this PNG (labels: mixture and seed folders)")
     args = parser.parse_args(argv)
     if args.action == "configs":
         for path in write_configs():
@@ -349,10 +378,16 @@ def main(argv: list[str] | None = None) -> int:
     elif args.action == "figure":
         print(figure(rows(), args.out).relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out)
     elif args.action == "layers":
+        profiles = {}
         for run in args.runs:
+            folder = run if run.is_dir() else run.parent
+            profile = profiles[f"{folder.parent.name} {folder.name}"] = layers(
+                run / "final.gsd" if run.is_dir() else run, args.thickness)
             print(f"{run}: z (d), phi, Q00, grains")
-            for layer in layers(run / "final.gsd" if run.is_dir() else run, args.thickness):
+            for layer in profile:
                 print(f"  {layer['z']:5.2f}  {layer['phi']:.4f}  {layer['Q00']:.3f}  {layer['grains']}")
+        if args.figure:
+            print(layers_figure(profiles, args.figure))
     else:
         print(markdown(rows()))
     return 0

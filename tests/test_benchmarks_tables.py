@@ -169,3 +169,9 @@ def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sen
     assert cells["flat-100"]["cell-study"][0] == 0.651  # a thin bed counts by its bed figure
     path = sensitivity.figure(table, tmp_path / "f.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_layers_figure_draws_each_profile(sensitivity, tmp_path):
+    profile = [{"z": 0.5 + k, "phi": 0.6, "Q00": 0.1, "grains": 100} for k in range(4)]
+    path = sensitivity.layers_figure({"a seed-1": profile, "b seed-1": profile[:2]}, tmp_path / "layers.png")
+    assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
