@@ -26,6 +26,7 @@ Usage::
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
+    python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
 
@@ -328,6 +329,33 @@ def layers(final: Path, thickness: float = 1.0) -> list[dict]:
     return out
 
 
+#: the timeline columns a rerun must repeat for its pile to be the study run's
+RERUN_COLUMNS = ("step", "kinetic_energy_total", "max_net_force", "max_net_torque", "contacts", "contact_points",
+                 "max_overlap")
+
+
+def rerun_check(rerun: Path, original: Path) -> dict:
+    """Whether a run made again from its seed (a ``time-600`` run) repeats the original run's
+    pile: their ``timeline.csv`` rows compared, column by column of :data:`RERUN_COLUMNS` as
+    written, over the times both reached. Returns ``same_until`` (the last time of identical
+    rows), ``first_difference`` (``None`` or the time and the differing columns) and ``compared``
+    (rows)."""
+    def timeline(run: Path) -> list[dict]:
+        with (run / "timeline.csv").open(newline="") as f:
+            return list(csv.DictReader(f))
+
+    same_until, compared = None, 0
+    for a, b in zip(timeline(original), timeline(rerun)):
+        if a["time"] != b["time"]:
+            return {"same_until": same_until, "first_difference": {"time": (a["time"], b["time"])}, "compared": compared}
+        differing = {k: (a[k], b[k]) for k in RERUN_COLUMNS if a[k] != b[k]}
+        if differing:
+            return {"same_until": same_until, "first_difference": {"time": float(a["time"]), **differing},
+                    "compared": compared}
+        same_until, compared = float(a["time"]), compared + 1
+    return {"same_until": same_until, "first_difference": None, "compared": compared}
+
+
 def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
     """Solid fraction and Q00 layer by layer (the :func:`layers` of each run, by label) side by
     side against the height; a PNG at ``path``: how a thin bed's density and order vary from its
@@ -363,6 +391,8 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("table", help="print the markdown table of the kept runs")
     drawn = sub.add_parser("figure", help="draw the solid fraction of each varied mixture beside the study's")
     drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
+    again = sub.add_parser("rerun-check", help="whether time-600 runs repeat the study runs they continue, to t = 300")
+    again.add_argument("runs", nargs="+", type=Path, help="run folders of time-600 campaigns (MIXTURE/seed-S)")
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders")
     by_layer.add_argument("runs", nargs="+", type=Path)
     by_layer.add_argument("--thickness", type=float, default=1.0, help="layer thickness, d (default 1)")
@@ -377,6 +407,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{len(table)} runs in {CSV.relative_to(ROOT)}", file=sys.stderr)
     elif args.action == "figure":
         print(figure(rows(), args.out).relative_to(ROOT) if args.out.is_relative_to(ROOT) else args.out)
+    elif args.action == "rerun-check":
+        for run in args.runs:
+            mixture = run.parent.name.partition("_")[2]
+            print(json.dumps({"run": str(run), **rerun_check(run, STUDY_RUNS / mixture / run.name)}))
     elif args.action == "layers":
         profiles = {}
         for run in args.runs:

@@ -175,3 +175,23 @@ def test_the_layers_figure_draws_each_profile(sensitivity, tmp_path):
     profile = [{"z": 0.5 + k, "phi": 0.6, "Q00": 0.1, "grains": 100} for k in range(4)]
     path = sensitivity.layers_figure({"a seed-1": profile, "b seed-1": profile[:2]}, tmp_path / "layers.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _timeline(folder, rows):
+    folder.mkdir(parents=True)
+    columns = ["time", "step", "kinetic_energy_total", "max_net_force", "max_net_torque", "contacts", "contact_points",
+               "max_overlap", "wall_seconds"]
+    lines = [",".join(columns)] + [",".join(str(v) for v in row) for row in rows]
+    (folder / "timeline.csv").write_text("\n".join(lines) + "\n")
+    return folder
+
+
+def test_a_rerun_repeats_its_original_until_their_first_differing_row(sensitivity, tmp_path):
+    rows = [(0.25 * (k + 1), 50 * (k + 1), 1.0 / (k + 1), 0.5, 0.1, 10 + k, 12 + k, 1e-5, k) for k in range(4)]
+    original = _timeline(tmp_path / "study" / "seed-1", rows)
+    same = _timeline(tmp_path / "same" / "seed-1", [r[:-1] + (99,) for r in rows[:3]])  # wall time differs
+    assert sensitivity.rerun_check(same, original) == {"same_until": 0.75, "first_difference": None, "compared": 3}
+    changed = rows[:2] + [rows[2][:5] + (13,) + rows[2][6:]] + rows[3:]
+    other = _timeline(tmp_path / "other" / "seed-1", changed)
+    check = sensitivity.rerun_check(other, original)
+    assert check["same_until"] == 0.5 and check["first_difference"] == {"time": 0.75, "contacts": ("12", "13")}
