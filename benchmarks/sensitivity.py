@@ -247,6 +247,17 @@ def markdown(table: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _save(fig, path: Path) -> Path:
+    """Write a matplotlib figure to the PNG ``path`` (its folder created) and close it."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def figure_cells(table: list[dict]) -> dict[str, dict[str, tuple[float, float, int]]]:
     """What :func:`figure` draws: mixture -> factor -> (mean phi, std or 0, runs) over the cell's
     finished runs (as the table counts them), for the mixtures of :data:`STUDY_PHI` that some factor varies. A bed
@@ -296,11 +307,7 @@ def figure(table: list[dict], path: Path) -> Path:
     ax.set_ylabel("bulk solid fraction (bed for thin beds)")
     ax.grid(axis="y", alpha=0.3)
     ax.legend(fontsize=8, ncol=2)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def layers(final: Path, thickness: float = 1.0) -> list[dict]:
@@ -376,11 +383,7 @@ def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
     for ax in (left, right):
         ax.grid(alpha=0.3)
     left.legend(fontsize=7, loc="lower left")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:
