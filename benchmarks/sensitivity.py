@@ -27,7 +27,7 @@ Usage::
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
-    python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd
+    python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
@@ -36,6 +36,8 @@ is the mean of the run's solid-fraction profile over the bed less a skin of ``BE
 the floor and below the surface (the surface: the highest level of the profile above
 ``SURFACE_PHI``), the figure of a bed too thin for a bulk region; ``phi_corrected`` is the bulk
 solid fraction over ``1 + k`` (k: the expansion coefficient in its work form, as the study's).
+A bed without a bulk region has its coordination and order figures over the whole bed, from its
+``final.gsd`` (:func:`bed_figures`).
 """
 
 from __future__ import annotations
@@ -187,11 +189,27 @@ def _bed_phi(profile_z: list[float], profile_phi: list[float]) -> float:
     return statistics.fmean(kept) if kept else float("nan")
 
 
+def bed_figures(final: Path, surface: float) -> tuple[dict, dict]:
+    """Coordination and order figures of the grains whose centres lie between the floor and
+    ``surface`` (d): those of a bed too thin for a bulk region, where ``analysis.json`` has none.
+    Contacts with the floor count as contacts of the grains resting on it."""
+    from granpack.analysis.coordination import Coordination
+    from granpack.analysis.order import Order
+    from granpack.io.gsd import read_packing
+
+    packing = read_packing(final)
+    c = Coordination((0.0, surface)).compute(packing)
+    o = Order((0.0, surface)).compute(packing)
+    return ({"N": c.N, **c.figures, "rattler_fraction": c.rattler_fraction}, {"Q00": o.Q00, "Q22": o.Q22})
+
+
 def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
     a = json.loads((run / "analysis.json").read_text())
     s = json.loads((run / "summary.json").read_text())
     task = json.loads((run / "task.json").read_text())
     phi, c, o = a["solid_fraction"], a["coordination"], a["order"]
+    if phi["bulk"] is None and (run / "final.gsd").is_file():
+        c, o = bed_figures(run / "final.gsd", a["bulk"]["z_surface"])
     return {"mixture": mixture, "factor": factor, "setting": setting, "seed": a["seed"], "grains": a["n_particles"],
             "cell": task["config"].get("lateral_size", 8.0), "status": s["status"], "t": round(s["simulated_time"], 3),
             "phi": phi["bulk"], "phi_std": phi["std"], "phi_bed": _bed_phi(phi["profile_z"], phi["profile_phi"]),
@@ -336,6 +354,21 @@ def layers(final: Path, thickness: float = 1.0) -> list[dict]:
     return out
 
 
+def profile_layers(analysis: Path, thickness: float = 1.0) -> list[dict]:
+    """The solid fraction of each ``thickness``-thick layer from the profile of an
+    ``analysis.json`` (its slices averaged), for a run whose ``final.gsd`` is not kept: the
+    layers of :func:`layers` without their Q00 and grain counts."""
+    phi = json.loads(analysis.read_text())["solid_fraction"]
+    z, values = phi["profile_z"], phi["profile_phi"]
+    n = max(1, math.ceil(max(z) / thickness))
+    out = []
+    for k in range(n):
+        kept = [v for zz, v in zip(z, values) if k * thickness <= zz < (k + 1) * thickness]
+        out.append({"z": (k + 0.5) * thickness, "phi": statistics.fmean(kept) if kept else float("nan"),
+                    "Q00": float("nan"), "grains": 0})
+    return out
+
+
 #: the timeline columns a rerun must repeat for its pile to be the study run's
 RERUN_COLUMNS = ("step", "kinetic_energy_total", "max_net_force", "max_net_torque", "contacts", "contact_points",
                  "max_overlap")
@@ -396,7 +429,8 @@ def main(argv: list[str] | None = None) -> int:
     drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
     again = sub.add_parser("rerun-check", help="whether time-600 runs repeat the study runs they continue, to t = 300")
     again.add_argument("runs", nargs="+", type=Path, help="run folders of time-600 campaigns (MIXTURE/seed-S)")
-    by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders")
+    by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
+                              "(phi alone, from analysis.json, where final.gsd is not kept)")
     by_layer.add_argument("runs", nargs="+", type=Path)
     by_layer.add_argument("--thickness", type=float, default=1.0, help="layer thickness, d (default 1)")
     by_layer.add_argument("--figure", type=Path, help="also draw the profiles into this PNG (labels: mixture and seed folders)")
@@ -418,8 +452,9 @@ def main(argv: list[str] | None = None) -> int:
         profiles = {}
         for run in args.runs:
             folder = run if run.is_dir() else run.parent
-            profile = profiles[f"{folder.parent.name} {folder.name}"] = layers(
-                run / "final.gsd" if run.is_dir() else run, args.thickness)
+            final = run / "final.gsd" if run.is_dir() else run
+            profile = profiles[f"{folder.parent.name} {folder.name}"] = (
+                layers(final, args.thickness) if final.is_file() else profile_layers(folder / "analysis.json", args.thickness))
             print(f"{run}: z (d), phi, Q00, grains")
             for layer in profile:
                 print(f"  {layer['z']:5.2f}  {layer['phi']:.4f}  {layer['Q00']:.3f}  {layer['grains']}")

@@ -4,6 +4,7 @@ the generated page of benchmarks/study_runs.py (docs/study.md), against the kept
 from __future__ import annotations
 
 import importlib.util
+import json
 import math
 from pathlib import Path
 
@@ -169,6 +170,15 @@ def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sen
     assert cells["flat-100"]["cell-study"][0] == 0.651  # a thin bed counts by its bed figure
     path = sensitivity.figure(table, tmp_path / "f.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_layers_of_a_run_without_final_state_average_its_profile(sensitivity, tmp_path):
+    z = [0.05 + 0.1 * k for k in range(25)]  # 0.2 in the first 0.5 d, 0.6 up to 2 d, empty above
+    phi = [0.2 if zk < 0.5 else 0.6 if zk < 2.0 else 0.0 for zk in z]
+    (tmp_path / "analysis.json").write_text(json.dumps({"solid_fraction": {"profile_z": z, "profile_phi": phi}}))
+    found = sensitivity.profile_layers(tmp_path / "analysis.json")
+    assert [layer["z"] for layer in found] == [0.5, 1.5, 2.5]
+    assert [layer["phi"] for layer in found] == [pytest.approx(0.4), pytest.approx(0.6), pytest.approx(0.0)]
 
 
 def test_the_layers_figure_draws_each_profile(sensitivity, tmp_path):
