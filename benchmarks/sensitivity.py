@@ -14,7 +14,12 @@ its factor names:
 - ``width-x3``: three times the cell area and three times the grains (9000);
 - ``deposit-lmgc``: LMGC90's deposit rule instead of the drop;
 - ``time-600``: the study runs stopped at the cap of 300 sqrt(d/g), run again from their seed with
-  a cap of 600 (one campaign file per seed, since each such run has its own seed).
+  a cap of 600 (one campaign file per seed, since each such run has its own seed);
+- ``screen-*``: where the study's overlaps come from, screened on 1000 one-size isometric
+  pinacoids (a third of the study's cell area, its bed height): granpack's default, the study
+  engine's regime, and that regime with each further element of the study's engine granpack can
+  take (``screening.toml``; their own default run is their reference, and their solid fractions,
+  of 1000 grains, are not drawn beside the study's).
 
 A mixture of a sensitivity campaign is named ``FACTOR_MIXTURE`` (``regime-lmgc_pinacoids-small-30``);
 its ``family`` is the factor, its ``share`` the mixture's.
@@ -58,7 +63,7 @@ STUDY = ROOT / "examples" / "study.toml"
 CONFIGS = HERE / "validation" / "configs"
 KEPT = HERE / "validation" / "runs"
 #: the campaigns of ``KEPT`` that belong to the sensitivity study (the others are other validations)
-SENSITIVITY_CAMPAIGNS = ("sensitivity", "time-600-seed-*")
+SENSITIVITY_CAMPAIGNS = ("sensitivity", "screening", "time-600-seed-*")
 STUDY_RUNS = HERE / "study"
 CSV = HERE / "validation" / "sensitivity.csv"
 FIGURE = ROOT / "docs" / "validation" / "figures" / "sensitivity.png"
@@ -85,6 +90,24 @@ FACTORS: tuple[tuple[str, str, dict], ...] = (
     ("width-x3", "spheres-small-30", {"n_particles": 9000, "lateral_scale": math.sqrt(3.0)}),
     ("deposit-lmgc", "pinacoids-small-0", {"deposit": {"method": "lmgc"}}),
     ("deposit-lmgc", "pinacoids-small-30", {"deposit": {"method": "lmgc"}}),
+)
+
+#: LMGC90's example solver settings: plain NLGS, 'Quad' 1.666e-4 from the start, gs_it1 = 51
+#: sweeps between checks, at most gs_it2 = 501 checks
+LMGC_SOLVER = {"acceleration": "none", "tolerance": 1.666e-4, "settling_tolerance": 1.666e-4, "check_every": 51,
+               "max_iterations": 51 * 501}
+#: a fixed step: no substeps for the rotations (the alert distance still follows the speeds)
+FIXED_STEP = {"max_rotation": 1000.0}
+#: (factor, overrides) of the screening runs on ``SCREEN_MIXTURE`` with ``SCREEN_GRAINS`` grains
+SCREEN_MIXTURE, SCREEN_GRAINS = "pinacoids-small-0", 1000
+SCREENING: tuple[tuple[str, dict], ...] = (
+    ("screen-default", {}),
+    ("screen-lmgc", {"overlap": LMGC_REGIME}),
+    ("screen-lmgc-fixed-step", {"overlap": LMGC_REGIME, "time_stepping": FIXED_STEP}),
+    ("screen-lmgc-from-start", {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"}}),
+    ("screen-lmgc-nlgs", {"overlap": LMGC_REGIME, "solver": LMGC_SOLVER}),
+    ("screen-lmgc-engine", {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"},
+                            "solver": LMGC_SOLVER}),
 )
 
 #: the study runs at the cap of 300 that miss even the study's equilibrium level: seed -> mixtures
@@ -164,6 +187,14 @@ def write_configs() -> list[Path]:
     mixtures = [_varied(study, factor, name, overrides) for factor, name, overrides in FACTORS]
     path = CONFIGS / "sensitivity.toml"
     path.write_text(_campaign_text(header, 2, study["base"], mixtures))
+    written.append(path)
+    scale = {"n_particles": SCREEN_GRAINS, "lateral_scale": math.sqrt(SCREEN_GRAINS / study["base"]["n_particles"])}
+    mixtures = [_varied(study, factor, SCREEN_MIXTURE, {**scale, **overrides}) for factor, overrides in SCREENING]
+    path = CONFIGS / "screening.toml"
+    path.write_text(_campaign_text(
+        "Where the study's overlaps come from: 1000 one-size isometric pinacoids, granpack's default, the study\n"
+        "engine's regime and that regime with each further element of the study's engine.\n"
+        "Written by `python benchmarks/sensitivity.py configs`; do not edit by hand.", 1, study["base"], mixtures))
     written.append(path)
     for seed, names in CAPPED.items():
         base = copy.deepcopy(study["base"])
@@ -282,7 +313,7 @@ def figure_cells(table: list[dict]) -> dict[str, dict[str, tuple[float, float, i
     without a bulk region (``cell-study``) counts by its ``phi_bed``."""
     cells: dict[str, dict[str, list[float]]] = {}
     for row in table:
-        if row["mixture"] not in STUDY_PHI:
+        if row["mixture"] not in STUDY_PHI or row["factor"].startswith("screen-"):
             continue
         value = row["phi_bed"] if row["factor"] == "cell-study" else row["phi"]
         cells.setdefault(row["mixture"], {}).setdefault(row["factor"], []).append(value)

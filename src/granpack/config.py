@@ -303,6 +303,11 @@ class TimeSteppingConfig(_Model):
                                   "impacts and the error of the linearised gaps grow with it.")
     theta: _Number = _setting(0.5, ge=0.5, le=1, description="Theta of the scheme, in [0.5, 1]: 0.5 conserves "
                               "the energy of free motion, 1 is the most dissipative.")
+    rotation_update: Literal["theta", "from-start"] = _setting(
+        "theta", description="'theta': the end orientation is the predicted one turned by theta h omega_end, the "
+        "scheme the gaps are linearised in; 'from-start': the start orientation turned by h omega_end, as LMGC90's "
+        "RBDY3 'new rotation scheme', off the linearised gaps by (1 - theta) h (omega_end - omega_start) at "
+        "impacts: a compatibility setting, to measure what that update does to a packing, not for use.")
     alert_distance: Optional[_Number] = _setting(
         None, "d", gt=0, description=f"Gap below which a pair is a contact candidate; unset: automatic, "
         f"{AUTO_ALERT_FRACTION:g} x the largest grain size (raised step by step while grains move fast).")

@@ -91,6 +91,9 @@ class StepParameters:
     Attributes:
         time_step: h, sqrt(d/g).
         theta: θ of the scheme, in [0.5, 1].
+        rotation_from_start: the end orientation is the start one turned by ``h ω^{n+1}``
+            (``time_stepping.rotation_update = "from-start"``, :func:`granpack.nscd.rigid.update_kernel`);
+            otherwise ``q^TT`` turned by ``θ h ω^{n+1}``, the θ scheme.
         friction: Coulomb μ >= 0 (0: frictionless kernel).
         restitution: normal restitution e_N in [0, 1].
         tolerance: NLGS 'Quad' norm tolerance.
@@ -123,6 +126,7 @@ class StepParameters:
 
     time_step: float = _STEPPING.time_step
     theta: float = _STEPPING.theta
+    rotation_from_start: bool = _STEPPING.rotation_update == "from-start"
     friction: float = _SOLVER.friction
     restitution: float = _SOLVER.restitution
     tolerance: float = _SOLVER.tolerance
@@ -308,7 +312,8 @@ def advance(
             displacement, correction_iterations = _position_correction(problem, gap_end, params)
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
     update_kernel.sized(state.n)(
-        pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, state.box.lx, state.box.ly,
+        pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, params.rotation_from_start,
+        state.box.lx, state.box.ly,
         state.position, state.quaternion, state.velocity, state.omega, thread_count(),
     )
     damped_energy = 0.0

@@ -152,14 +152,20 @@ def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, t
 
 
 @jit(parallel=True)
-def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, position, quaternion, velocity, omega, chunks):
+def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, position, quaternion, velocity,
+                  omega, chunks):
     """Numba: end-of-step positions, orientations and velocities, positions wrapped in x, y.
+
+    The end orientation is ``q^TT`` turned by ``θ h ω^{n+1}``; with ``from_start`` it is ``q^n``
+    turned by ``h ω^{n+1}`` instead (``time_stepping.rotation_update = "from-start"``), which differs
+    from the θ scheme the gaps are linearised in by ``(1 - θ) h (ω^{n+1} - ω^n)``.
 
     Args:
         x_tt, q_tt, rot_tt: predicted configuration ``(N, 3)``, ``(N, 4)``, ``(N, 3, 3)``.
         v_end: ``(N + 1, 6)`` world generalised velocities at t_{n+1}.
         displacement: ``(N + 1, 6)`` world position correction ``(δx, δφ)``, d and radians.
         h, theta: time step and θ.
+        from_start: turn the orientation at t_n by ``h ω^{n+1}`` (see above).
         lx, ly: periods of the cell, d.
         position, quaternion, velocity, omega: state arrays, overwritten (omega body frame).
         chunks: consecutive ranges of bodies computed at once (threads); the result does not
@@ -167,13 +173,13 @@ def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, pos
     """
     n = position.shape[0]
     for c in prange(chunks):
-        _update_bodies(n * c // chunks, n * (c + 1) // chunks, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly,
-                       position, quaternion, velocity, omega)
+        _update_bodies(n * c // chunks, n * (c + 1) // chunks, x_tt, q_tt, rot_tt, v_end, displacement, h, theta,
+                       from_start, lx, ly, position, quaternion, velocity, omega)
 
 
 @jit
-def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx, ly, position, quaternion, velocity,
-                   omega):
+def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, position, quaternion,
+                   velocity, omega):
     """Numba: :func:`update_kernel` for the bodies ``p0 <= p < p1``."""
     b = theta * h
     phi = np.empty(3)
@@ -187,7 +193,15 @@ def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, lx
             d_body = rot[0, k] * displacement[p, 3] + rot[1, k] * displacement[p, 4] + rot[2, k] * displacement[p, 5]
             omega[p, k] = w_body
             phi[k] = b * w_body + d_body
-        q = quat_integrate_body_nb(q_tt[p], phi)
+        if from_start:
+            start = quat_to_matrix_nb(quaternion[p])
+            for k in range(3):
+                phi[k] = (h * (start[0, k] * v_end[p, 3] + start[1, k] * v_end[p, 4] + start[2, k] * v_end[p, 5])
+                          + start[0, k] * displacement[p, 3] + start[1, k] * displacement[p, 4]
+                          + start[2, k] * displacement[p, 5])
+            q = quat_integrate_body_nb(quaternion[p], phi)
+        else:
+            q = quat_integrate_body_nb(q_tt[p], phi)
         for k in range(4):
             quaternion[p, k] = q[k]
         x = position[p, 0] - lx * np.floor(position[p, 0] / lx)
