@@ -33,6 +33,7 @@ Usage::
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
+    python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
@@ -405,6 +406,30 @@ RERUN_COLUMNS = ("step", "kinetic_energy_total", "max_net_force", "max_net_torqu
                  "max_overlap")
 
 
+def k_manifold_deepest(final: Path, n_bottom: float = 2.0) -> dict:
+    """The expansion coefficient k of a packing (work form, more than ``n_bottom`` d above the
+    wall) beside the same k with every point of a manifold at the manifold's deepest overlap, as
+    an engine that gives all the points of a face contact one common-plane gap reports them; and
+    the force-weighted mean of the manifolds' deepest overlaps, d."""
+    import numpy as np
+
+    from granpack.io.gsd import read_packing
+
+    packing = read_packing(final)
+    c, state = packing.contacts, packing.state
+    overlap = np.maximum(-c.gap, 0.0)
+    deepest = np.zeros(c.n_manifolds)
+    np.maximum.at(deepest, c.point_manifold, overlap)
+    weight = np.abs(packing.point_force[:, 2]) * np.abs(c.normal[c.point_manifold, 2])
+    above = c.point[:, 2] > n_bottom * packing.max_size
+    z = state.position[:, 2]
+    moment = float(np.sum(packing.gravity * state.mass[z > n_bottom * packing.max_size] * z[z > n_bottom * packing.max_size]))
+    loads = np.abs(packing.manifold_force[:, 2])
+    return {"k": float(np.sum((weight * overlap)[above]) / moment),
+            "k_manifold_deepest": float(np.sum((weight * deepest[c.point_manifold])[above]) / moment),
+            "deepest_force_weighted": float(np.average(deepest, weights=loads)) if loads.sum() > 0 else float("nan")}
+
+
 def rerun_check(rerun: Path, original: Path) -> dict:
     """Whether a run made again from its seed (a ``time-600`` run) repeats the original run's
     pile: their ``timeline.csv`` rows compared, column by column of :data:`RERUN_COLUMNS` as
@@ -460,6 +485,9 @@ def main(argv: list[str] | None = None) -> int:
     drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
     again = sub.add_parser("rerun-check", help="whether time-600 runs repeat the study runs they continue, to t = 300")
     again.add_argument("runs", nargs="+", type=Path, help="run folders of time-600 campaigns (MIXTURE/seed-S)")
+    deepest = sub.add_parser("k-deepest", help="k of final.gsd of run folders beside k with every point of a "
+                             "manifold at its deepest overlap")
+    deepest.add_argument("runs", nargs="+", type=Path)
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
                               "(phi alone, from analysis.json, where final.gsd is not kept)")
     by_layer.add_argument("runs", nargs="+", type=Path)
@@ -479,6 +507,9 @@ def main(argv: list[str] | None = None) -> int:
         for run in args.runs:
             mixture = run.parent.name.partition("_")[2]
             print(json.dumps({"run": str(run), **rerun_check(run, STUDY_RUNS / mixture / run.name)}))
+    elif args.action == "k-deepest":
+        for run in args.runs:
+            print(json.dumps({"run": str(run), **k_manifold_deepest(run / "final.gsd")}))
     elif args.action == "layers":
         profiles = {}
         for run in args.runs:

@@ -205,3 +205,33 @@ def test_a_rerun_repeats_its_original_until_their_first_differing_row(sensitivit
     other = _timeline(tmp_path / "other" / "seed-1", changed)
     check = sensitivity.rerun_check(other, original)
     assert check["same_until"] == 0.5 and check["first_difference"] == {"time": 0.75, "contacts": ("12", "13")}
+
+
+def test_k_with_each_manifold_at_its_deepest_overlap_weights_every_point_by_the_deepest(sensitivity, tmp_path):
+    """Two cubes stacked above the bulk's floor, one face manifold of four points carrying a unit
+    vertical force each, with overlaps 4e-3, 1e-3, 0 and 0 d: k = (4e-3 + 1e-3) / Σ m g z, and with
+    every point at the manifold's deepest overlap 4 × 4e-3 / Σ m g z."""
+    import numpy as np
+    from packing_builders import H, contact_set, identity_quaternions
+
+    from granpack.box import Box
+    from granpack.io.gsd import write_packing
+    from granpack.packing import Packing
+    from granpack.shapes import ShapeTable, platonic
+    from granpack.state import ParticleState
+
+    cube = platonic("cube", 1.0)
+    side = 1.0 / math.sqrt(3.0)
+    z = np.array([3.0, 3.0 + side])
+    state = ParticleState(box=Box.square(3.0), shapes=ShapeTable.from_shapes([cube]), kind=np.zeros(2, np.int64),
+                          population=np.zeros(2, np.int64), position=np.array([[1.5, 1.5, z[0]], [1.5, 1.5, z[1]]]),
+                          quaternion=identity_quaternions(2))
+    corners = [(1.5 + a * side / 2, 1.5 + b * side / 2, z[0] + side / 2) for a in (-1, 1) for b in (-1, 1)]
+    contacts = contact_set([dict(i=1, j=0, normal=(0, 0, 1), points=corners, gaps=[-4e-3, -1e-3, 0.0, 0.0],
+                                 forces=[(0.0, 0.0, 1.0)] * 4)])
+    path = write_packing(tmp_path / "final.gsd", Packing(state, contacts, H, ["cubes"], {"seed": 1}))
+    moment = cube.volume * z.sum()
+    figures = sensitivity.k_manifold_deepest(path)
+    assert figures["k"] == pytest.approx(5e-3 / moment, rel=1e-9)
+    assert figures["k_manifold_deepest"] == pytest.approx(16e-3 / moment, rel=1e-9)
+    assert figures["deepest_force_weighted"] == pytest.approx(4e-3, rel=1e-9)
