@@ -33,7 +33,7 @@ Usage::
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
-    python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap
+    python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap (or of a checkpoint.gsd)
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
 
 ``csv`` reads the finished runs kept in ``benchmarks/validation/runs/`` and, as the ``default``
@@ -485,8 +485,8 @@ def main(argv: list[str] | None = None) -> int:
     drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
     again = sub.add_parser("rerun-check", help="whether time-600 runs repeat the study runs they continue, to t = 300")
     again.add_argument("runs", nargs="+", type=Path, help="run folders of time-600 campaigns (MIXTURE/seed-S)")
-    deepest = sub.add_parser("k-deepest", help="k of final.gsd of run folders beside k with every point of a "
-                             "manifold at its deepest overlap")
+    deepest = sub.add_parser("k-deepest", help="k of final.gsd of run folders (or of GSD files: a checkpoint of a "
+                             "run under way) beside k with every point of a manifold at its deepest overlap")
     deepest.add_argument("runs", nargs="+", type=Path)
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
                               "(phi alone, from analysis.json, where final.gsd is not kept)")
@@ -509,7 +509,7 @@ def main(argv: list[str] | None = None) -> int:
             print(json.dumps({"run": str(run), **rerun_check(run, STUDY_RUNS / mixture / run.name)}))
     elif args.action == "k-deepest":
         for run in args.runs:
-            print(json.dumps({"run": str(run), **k_manifold_deepest(run / "final.gsd")}))
+            print(json.dumps({"run": str(run), **k_manifold_deepest(run / "final.gsd" if run.is_dir() else run)}))
     elif args.action == "layers":
         profiles = {}
         for run in args.runs:
