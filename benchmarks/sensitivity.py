@@ -18,8 +18,9 @@ its factor names:
 - ``screen-*``: where the study's overlaps come from, screened on 1000 one-size isometric
   pinacoids (a third of the study's cell area, its bed height): granpack's default, the study
   engine's regime, and that regime with each further element of the study's engine granpack can
-  take (``screening.toml``; their own default run is their reference, and their solid fractions,
-  of 1000 grains, are not drawn beside the study's).
+  take; on 1000 flat pinacoids, the default and all those elements together (``screening.toml``;
+  their own default run is their reference, and their solid fractions, of 1000 grains, are not
+  drawn beside the study's).
 
 A mixture of a sensitivity campaign is named ``FACTOR_MIXTURE`` (``regime-lmgc_pinacoids-small-30``);
 its ``family`` is the factor, its ``share`` the mixture's.
@@ -99,16 +100,22 @@ LMGC_SOLVER = {"acceleration": "none", "tolerance": 1.666e-4, "settling_toleranc
                "max_iterations": 51 * 501}
 #: a fixed step: no substeps for the rotations (the alert distance still follows the speeds)
 FIXED_STEP = {"max_rotation": 1000.0}
-#: (factor, overrides) of the screening runs on ``SCREEN_MIXTURE`` with ``SCREEN_GRAINS`` grains
-SCREEN_MIXTURE, SCREEN_GRAINS = "pinacoids-small-0", 1000
-SCREENING: tuple[tuple[str, dict], ...] = (
-    ("screen-default", {}),
-    ("screen-lmgc", {"overlap": LMGC_REGIME}),
-    ("screen-lmgc-fixed-step", {"overlap": LMGC_REGIME, "time_stepping": FIXED_STEP}),
-    ("screen-lmgc-from-start", {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"}}),
-    ("screen-lmgc-nlgs", {"overlap": LMGC_REGIME, "solver": LMGC_SOLVER}),
-    ("screen-lmgc-engine", {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"},
-                            "solver": LMGC_SOLVER}),
+#: the study engine's elements granpack can take, all together
+LMGC_ENGINE = {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"},
+               "solver": LMGC_SOLVER}
+#: the grains of a screening run (a third of the study's, in a third of its cell area)
+SCREEN_GRAINS = 1000
+#: (factor, mixture of examples/study.toml, overrides) of the screening runs
+SCREENING: tuple[tuple[str, str, dict], ...] = (
+    ("screen-default", "pinacoids-small-0", {}),
+    ("screen-lmgc", "pinacoids-small-0", {"overlap": LMGC_REGIME}),
+    ("screen-lmgc-fixed-step", "pinacoids-small-0", {"overlap": LMGC_REGIME, "time_stepping": FIXED_STEP}),
+    ("screen-lmgc-from-start", "pinacoids-small-0",
+     {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"}}),
+    ("screen-lmgc-nlgs", "pinacoids-small-0", {"overlap": LMGC_REGIME, "solver": LMGC_SOLVER}),
+    ("screen-lmgc-engine", "pinacoids-small-0", LMGC_ENGINE),
+    ("screen-default", "flat-100", {}),
+    ("screen-lmgc-engine", "flat-100", LMGC_ENGINE),
 )
 
 #: the study runs at the cap of 300 that miss even the study's equilibrium level: seed -> mixtures
@@ -190,11 +197,12 @@ def write_configs() -> list[Path]:
     path.write_text(_campaign_text(header, 2, study["base"], mixtures))
     written.append(path)
     scale = {"n_particles": SCREEN_GRAINS, "lateral_scale": math.sqrt(SCREEN_GRAINS / study["base"]["n_particles"])}
-    mixtures = [_varied(study, factor, SCREEN_MIXTURE, {**scale, **overrides}) for factor, overrides in SCREENING]
+    mixtures = [_varied(study, factor, name, {**scale, **overrides}) for factor, name, overrides in SCREENING]
     path = CONFIGS / "screening.toml"
     path.write_text(_campaign_text(
         "Where the study's overlaps come from: 1000 one-size isometric pinacoids, granpack's default, the study\n"
-        "engine's regime and that regime with each further element of the study's engine.\n"
+        "engine's regime and that regime with each further element of the study's engine; 1000 flat pinacoids,\n"
+        "granpack's default and all those elements together.\n"
         "Written by `python benchmarks/sensitivity.py configs`; do not edit by hand.", 1, study["base"], mixtures))
     written.append(path)
     for seed, names in CAPPED.items():
