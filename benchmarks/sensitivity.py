@@ -33,6 +33,7 @@ Usage::
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
+    python benchmarks/sensitivity.py drift                    # how far the capped study runs were still settling
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
     python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap (or of a checkpoint.gsd)
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
@@ -460,6 +461,30 @@ def rerun_check(rerun: Path, original: Path) -> dict:
     return {"same_until": same_until, "first_difference": None, "compared": compared}
 
 
+def settling_drift(run: Path, windows: tuple[tuple[float, float], ...] = ((100.0, 200.0), (200.0, 300.0), (250.0, 300.0))) -> dict:
+    """How far a run's pile was still settling: over each window ``(t0, t1]`` of its timeline, the
+    descent of the grains' centre of mass, from the potential energy it lost (``dz = dE_p / (rho g
+    V)``, d; V the solid volume, the cell area times the integral of the solid-fraction profile),
+    and the relative rise of the solid fraction it would make if the whole bed compacted evenly,
+    ``-dz / z_G`` (z_G the profile's centre of mass): what a run capped before rest would still
+    have gained in the window's time. Returns ``{"z_G", "windows": [{"t0", "t1", "dz", "dphi_rel"}]}``."""
+    a = json.loads((run / "analysis.json").read_text())
+    task = json.loads((run / "task.json").read_text())
+    cell = task["config"].get("lateral_size", 8.0)
+    z, phi = a["solid_fraction"]["profile_z"], a["solid_fraction"]["profile_phi"]
+    dz_profile = z[1] - z[0]
+    volume = cell * cell * dz_profile * math.fsum(phi)
+    z_g = math.fsum(zz * f for zz, f in zip(z, phi)) / math.fsum(phi)
+    with (run / "timeline.csv").open(newline="") as f:
+        timeline = [(float(r["time"]), float(r["potential_energy_change"])) for r in csv.DictReader(f)
+                    if r["potential_energy_change"] not in ("", "None", "nan")]
+    out = []
+    for t0, t1 in windows:
+        dz = math.fsum(de for t, de in timeline if t0 < t <= t1) / volume
+        out.append({"t0": t0, "t1": t1, "dz": dz, "dphi_rel": -dz / z_g})
+    return {"z_G": z_g, "windows": out}
+
+
 def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
     """Solid fraction and Q00 layer by layer (the :func:`layers` of each run, by label) side by
     side against the height; a PNG at ``path``: how a thin bed's density and order vary from its
@@ -496,6 +521,8 @@ def main(argv: list[str] | None = None) -> int:
     deepest = sub.add_parser("k-deepest", help="k of final.gsd of run folders (or of GSD files: a checkpoint of a "
                              "run under way) beside k with every point of a manifold at its deepest overlap")
     deepest.add_argument("runs", nargs="+", type=Path)
+    sub.add_parser("drift", help="how far each capped study run was still settling over its last 200 and 100 "
+                   "sqrt(d/g): centre-of-mass descent and the solid fraction it would add")
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
                               "(phi alone, from analysis.json, where final.gsd is not kept)")
     by_layer.add_argument("runs", nargs="+", type=Path)
@@ -518,6 +545,10 @@ def main(argv: list[str] | None = None) -> int:
     elif args.action == "k-deepest":
         for run in args.runs:
             print(json.dumps({"run": str(run), **k_manifold_deepest(run / "final.gsd" if run.is_dir() else run)}))
+    elif args.action == "drift":
+        for seed, names in CAPPED.items():
+            for name in names:
+                print(json.dumps({"run": f"{name}/seed-{seed}", **settling_drift(STUDY_RUNS / name / f"seed-{seed}")}))
     elif args.action == "layers":
         profiles = {}
         for run in args.runs:

@@ -235,3 +235,19 @@ def test_k_with_each_manifold_at_its_deepest_overlap_weights_every_point_by_the_
     assert figures["k"] == pytest.approx(5e-3 / moment, rel=1e-9)
     assert figures["k_manifold_deepest"] == pytest.approx(16e-3 / moment, rel=1e-9)
     assert figures["deepest_force_weighted"] == pytest.approx(4e-3, rel=1e-9)
+
+
+def test_the_settling_drift_of_a_run_is_its_centre_of_mass_descent_over_each_window(sensitivity, tmp_path):
+    """A bed of solid fraction 0.5 from 0 to 4 d in a 2 d cell (V = 8 d^3, z_G = 2 d) that loses
+    potential energy 0.2 rho g d^4 per row: over (200, 300] (four rows) its centre of mass sinks
+    by 4 x 0.2 / 8 = 0.1 d, which an even compaction makes a rise of phi by 0.1 / 2 = 5 %."""
+    z = [0.05 + 0.1 * k for k in range(50)]
+    phi = [0.5 if zk < 4.0 else 0.0 for zk in z]
+    (tmp_path / "analysis.json").write_text(json.dumps({"solid_fraction": {"profile_z": z, "profile_phi": phi}}))
+    (tmp_path / "task.json").write_text(json.dumps({"config": {"lateral_size": 2.0}}))
+    rows = [("0.25", "None")] + [(f"{t:g}", "-0.2") for t in (150, 225, 250, 275, 300)]
+    (tmp_path / "timeline.csv").write_text("time,potential_energy_change\n" + "".join(f"{t},{e}\n" for t, e in rows))
+    drift = sensitivity.settling_drift(tmp_path, windows=((200.0, 300.0), (250.0, 300.0), (100.0, 200.0)))
+    assert drift["z_G"] == pytest.approx(2.0)
+    assert [w["dz"] for w in drift["windows"]] == [pytest.approx(-0.1), pytest.approx(-0.05), pytest.approx(-0.025)]
+    assert [w["dphi_rel"] for w in drift["windows"]] == [pytest.approx(0.05), pytest.approx(0.025), pytest.approx(0.0125)]
