@@ -13,6 +13,9 @@ its factor names:
   elongated ones, with the same 3000 grains (thin beds);
 - ``width-x3``: three times the cell area and three times the grains (9000);
 - ``deposit-lmgc``: LMGC90's deposit rule instead of the drop;
+- ``engine-lmgc``: the study engine's elements granpack can take, all together (its regime, a
+  fixed step, its rotation update, its plain NLGS), at the study's size on the 30 % small
+  pinacoids, the mixture whose light grains a plain Gauss–Seidel relaxes slowest;
 - ``time-600``: the study runs stopped at the cap of 300 sqrt(d/g), run again from their seed with
   a cap of 600 (one campaign file per seed, since each such run has its own seed);
 - ``screen-*``: where the study's overlaps come from, screened on 1000 one-size isometric
@@ -80,6 +83,15 @@ COLUMNS = ("mixture", "factor", "setting", "seed", "grains", "cell", "status", "
 #: the study engine's contact regime: no push-back, no projection of overlaps
 LMGC_REGIME = {"recovery_rate": 0.0, "projection_slop": 0.0, "pour_projection_slop": 0.0}
 
+#: LMGC90's example solver settings: plain NLGS, 'Quad' 1.666e-4 from the start, gs_it1 = 51
+#: sweeps between checks, at most gs_it2 = 501 checks
+LMGC_SOLVER = {"acceleration": "none", "tolerance": 1.666e-4, "settling_tolerance": 1.666e-4, "check_every": 51,
+               "max_iterations": 51 * 501}
+#: a fixed step: no substeps for the rotations (the alert distance still follows the speeds)
+FIXED_STEP = {"max_rotation": 1000.0}
+#: the study engine's elements granpack can take, all together
+LMGC_ENGINE = {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"},
+               "solver": LMGC_SOLVER}
 #: (factor, mixture of examples/study.toml, overrides of the mixture's own keys)
 FACTORS: tuple[tuple[str, str, dict], ...] = (
     ("regime-lmgc", "pinacoids-small-0", {"overlap": LMGC_REGIME}),
@@ -93,17 +105,9 @@ FACTORS: tuple[tuple[str, str, dict], ...] = (
     ("width-x3", "spheres-small-30", {"n_particles": 9000, "lateral_scale": math.sqrt(3.0)}),
     ("deposit-lmgc", "pinacoids-small-0", {"deposit": {"method": "lmgc"}}),
     ("deposit-lmgc", "pinacoids-small-30", {"deposit": {"method": "lmgc"}}),
+    ("engine-lmgc", "pinacoids-small-30", LMGC_ENGINE),
 )
 
-#: LMGC90's example solver settings: plain NLGS, 'Quad' 1.666e-4 from the start, gs_it1 = 51
-#: sweeps between checks, at most gs_it2 = 501 checks
-LMGC_SOLVER = {"acceleration": "none", "tolerance": 1.666e-4, "settling_tolerance": 1.666e-4, "check_every": 51,
-               "max_iterations": 51 * 501}
-#: a fixed step: no substeps for the rotations (the alert distance still follows the speeds)
-FIXED_STEP = {"max_rotation": 1000.0}
-#: the study engine's elements granpack can take, all together
-LMGC_ENGINE = {"overlap": LMGC_REGIME, "time_stepping": {**FIXED_STEP, "rotation_update": "from-start"},
-               "solver": LMGC_SOLVER}
 #: the grains of a screening run (a third of the study's, in a third of its cell area)
 SCREEN_GRAINS = 1000
 #: (factor, mixture of examples/study.toml, overrides) of the screening runs

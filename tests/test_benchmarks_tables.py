@@ -133,6 +133,9 @@ def test_the_sensitivity_campaigns_vary_one_factor_against_the_study(sensitivity
     assert varied["cell-study_flat-elongated-100"]["lateral_size"] == 8.0
     assert varied["width-x3_pinacoids-small-30"]["n_particles"] == 9000
     assert varied["width-x3_pinacoids-small-30"]["lateral_size"] == pytest.approx(3.0 * math.sqrt(3.0), abs=1e-4)
+    engine = varied["engine-lmgc_pinacoids-small-30"]
+    assert engine["solver"]["acceleration"] == "none" and engine["time_stepping"]["rotation_update"] == "from-start"
+    assert engine["lateral_size"] == study["pinacoids-small-30"]["lateral_size"]
 
 
 def test_the_bed_solid_fraction_leaves_a_skin_at_the_floor_and_the_surface(sensitivity):
