@@ -34,6 +34,7 @@ Usage::
     benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs (final.gsd too) in the repository
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
+    python benchmarks/sensitivity.py status                   # every planned run: finished, checkpointed (at t) or not started
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py drift                    # how far the capped study runs were still settling
@@ -58,6 +59,7 @@ import copy
 import csv
 import json
 import math
+import re
 import statistics
 import sys
 import tomllib
@@ -512,12 +514,42 @@ def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
     return _save(fig, path)
 
 
+def _checkpoint_time(run: Path) -> float | None:
+    """The simulated time of the last progress line of a checkpointed run (``settling t = T/...``)."""
+    log = run / "progress.log"
+    times = re.findall(r"t = ([0-9.]+)/", log.read_text()) if log.is_file() else []
+    return float(times[-1]) if times else None
+
+
+def plan_status() -> list[dict]:
+    """Every run the campaign files of ``CONFIGS`` plan, and where its kept copy in ``KEPT`` stands:
+    ``finished`` (with its status, simulated time and CPU hours), ``checkpoint`` (with the time of
+    its last progress line) or ``not started``. What is left of the study, read off the repository."""
+    from granpack.campaign.runner import selected_runs
+    from granpack.campaign.spec import load_campaign
+
+    out = []
+    for path in sorted(CONFIGS.glob("*.toml")):
+        for run in selected_runs(load_campaign(path), None):
+            kept = KEPT / path.stem / run.folder
+            row = {"campaign": path.stem, "run": run.folder.as_posix(), "state": "not started", "t": None, "cpu_h": None}
+            if (kept / "summary.json").is_file():
+                summary = json.loads((kept / "summary.json").read_text())
+                row.update(state=f"finished ({summary['status']})", t=round(summary["simulated_time"], 2),
+                           cpu_h=round((summary.get("cpu_time") or float("nan")) / 3600, 2))
+            elif any(kept.glob("checkpoint*.gsd")):
+                row.update(state="checkpoint", t=_checkpoint_time(kept))
+            out.append(row)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="action", required=True)
     sub.add_parser("configs", help="write the campaign files of benchmarks/validation/configs/")
     sub.add_parser("csv", help="write benchmarks/validation/sensitivity.csv from the kept runs")
     sub.add_parser("table", help="print the markdown table of the kept runs")
+    sub.add_parser("status", help="every planned run: finished, checkpointed (at t) or not started")
     drawn = sub.add_parser("figure", help="draw the solid fraction of each varied mixture beside the study's")
     drawn.add_argument("--out", type=Path, default=FIGURE, help=f"PNG to write (default {FIGURE.relative_to(ROOT)})")
     again = sub.add_parser("rerun-check", help="whether time-600 runs repeat the study runs they continue, to t = 300")
@@ -553,6 +585,14 @@ def main(argv: list[str] | None = None) -> int:
         for seed, names in CAPPED.items():
             for name in names:
                 print(json.dumps({"run": f"{name}/seed-{seed}", **settling_drift(STUDY_RUNS / name / f"seed-{seed}")}))
+    elif args.action == "status":
+        plan = plan_status()
+        for row in plan:
+            t = "" if row["t"] is None else f"  t = {row['t']:g}"
+            cpu = "" if row["cpu_h"] is None else f"  {row['cpu_h']:g} CPU h"
+            print(f"{row['campaign']:<18} {row['run']:<48} {row['state']}{t}{cpu}")
+        done = sum(row["state"].startswith("finished") for row in plan)
+        print(f"{done} of {len(plan)} runs finished", file=sys.stderr)
     elif args.action == "layers":
         profiles = {}
         for run in args.runs:

@@ -254,3 +254,26 @@ def test_the_settling_drift_of_a_run_is_its_centre_of_mass_descent_over_each_win
     assert drift["z_G"] == pytest.approx(2.0)
     assert [w["dz"] for w in drift["windows"]] == [pytest.approx(-0.1), pytest.approx(-0.05), pytest.approx(-0.025)]
     assert [w["dphi_rel"] for w in drift["windows"]] == [pytest.approx(0.05), pytest.approx(0.025), pytest.approx(0.0125)]
+
+
+def test_the_plan_status_tells_finished_checkpointed_and_unstarted_runs(sensitivity, tmp_path, monkeypatch):
+    """Each run a campaign file plans is finished (summary.json), checkpointed (at the time of its
+    last progress line) or not started, read off the kept runs."""
+    configs, kept = tmp_path / "configs", tmp_path / "runs"
+    configs.mkdir()
+    (configs / "plan.toml").write_text(
+        'replicas = 3\n[base]\nseed = 1\nn_particles = 50\n[[mixtures]]\nname = "a_spheres"\n'
+        '[[mixtures.populations]]\nname = "s"\nshape = "sphere"\nsize = 1.0\nvolume_fraction = 1.0\n')
+    finished, checkpointed = kept / "plan" / "a_spheres" / "seed-1", kept / "plan" / "a_spheres" / "seed-2"
+    finished.mkdir(parents=True)
+    checkpointed.mkdir(parents=True)
+    (finished / "summary.json").write_text(json.dumps({"status": "equilibrium", "simulated_time": 42.25, "cpu_time": 1800.0}))
+    (checkpointed / "checkpoint.gsd").write_bytes(b"")
+    (checkpointed / "progress.log").write_text("settling t = 3.00/300 sqrt(d/g)\nsettling t = 7.50/300 sqrt(d/g)\n")
+    monkeypatch.setattr(sensitivity, "CONFIGS", configs)
+    monkeypatch.setattr(sensitivity, "KEPT", kept)
+    plan = {row["run"]: row for row in sensitivity.plan_status()}
+    assert plan["a_spheres/seed-1"] == {"campaign": "plan", "run": "a_spheres/seed-1", "state": "finished (equilibrium)",
+                                        "t": 42.25, "cpu_h": 0.5}
+    assert plan["a_spheres/seed-2"]["state"] == "checkpoint" and plan["a_spheres/seed-2"]["t"] == 7.5
+    assert plan["a_spheres/seed-3"]["state"] == "not started" and plan["a_spheres/seed-3"]["t"] is None
