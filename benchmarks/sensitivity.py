@@ -38,6 +38,7 @@ Usage::
     python benchmarks/sensitivity.py figure                   # docs/validation/figures/sensitivity.png
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py drift                    # how far the capped study runs were still settling
+    python benchmarks/sensitivity.py thin-beds                # the series as the study's cells would measure them
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
     python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap (or of a checkpoint.gsd)
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
@@ -132,6 +133,13 @@ CAPPED = {
     3: ("elongated-100", "elongated-20", "elongated-36", "flat-12", "pinacoids-small-13", "spheres-small-3"),
 }
 LONGER_CAP = 600.0
+
+#: the study's cell widths, d, by family of substituted grains (its text: 8 d for flat & elongated,
+#: 6 to 8 d for flat, 8 to 11 d for elongated grains, 3000 grains in every run)
+STUDY_CELLS = {"flat-elongated": (8.0,), "flat": (6.0, 8.0), "elongated": (8.0, 11.0)}
+#: the least bed height, d, with a bulk region by the study's rule (two grain sizes above the floor
+#: and below the surface, and one more to measure)
+BULK_BED = 5.0
 
 #: the study's solid fractions (its text and tables, as docs/validation.md quotes them): mixture ->
 #: (raw phi, its std, phi_min the virtual-work lower bound); None where the study gives none. Its
@@ -491,6 +499,46 @@ def settling_drift(run: Path, windows: tuple[tuple[float, float], ...] = ((100.0
     return {"z_G": z_g, "windows": out}
 
 
+def thin_bed(run: Path, cell: float) -> dict:
+    """What a run of ``benchmarks/study/`` would measure in a cell ``cell`` d wide with the same
+    grains: its bed height ``H = z_s (L / cell)^2`` (z_s the run's surface, L its cell) and, a thin
+    bed being the bottom of a thick one (measured on the study's cells for the flat and flat &
+    elongated grains), the solid fraction of the run's profile over the whole 1 d layers below
+    ``H``: ``phi_layers`` (None where ``H`` is below 1 d or above the run's own bed). ``phi_study``
+    is what the study's rule would report: the bulk where ``H >= BULK_BED``, else ``phi_layers``."""
+    a = json.loads((run / "analysis.json").read_text())
+    own = json.loads((run / "task.json").read_text())["config"].get("lateral_size", 8.0)
+    surface = a["bulk"]["z_surface"]
+    height = surface * (own / cell) ** 2
+    z, phi = a["solid_fraction"]["profile_z"], a["solid_fraction"]["profile_phi"]
+    top = math.floor(height)
+    kept = [f for zz, f in zip(z, phi) if zz < top]
+    layers_phi = statistics.fmean(kept) if kept and height <= surface else None
+    bulk = a["solid_fraction"]["bulk"]
+    return {"height": height, "phi_layers": layers_phi, "phi_bulk": bulk,
+            "phi_study": bulk if height >= BULK_BED else layers_phi}
+
+
+def thin_beds() -> list[dict]:
+    """:func:`thin_bed` of every run of the flat, flat & elongated and elongated series of
+    ``benchmarks/study/`` at each of the study's cells for its family (``STUDY_CELLS``), a row per
+    (mixture, cell) with the mean and std over its seeds."""
+    out = []
+    for family, cells in STUDY_CELLS.items():
+        names = sorted((p.name for p in STUDY_RUNS.glob(f"{family}-*") if p.name.rpartition("-")[0] == family),
+                       key=lambda name: int(name.rpartition("-")[2]))
+        for name in names:
+            for cell in cells:
+                beds = [thin_bed(run, cell) for run in sorted((STUDY_RUNS / name).glob("seed-*"))]
+                row = {"mixture": name, "cell": cell, "height": statistics.fmean(b["height"] for b in beds)}
+                for key in ("phi_bulk", "phi_layers", "phi_study"):
+                    values = [b[key] for b in beds if b[key] is not None]
+                    row[key] = statistics.fmean(values) if len(values) == len(beds) else None
+                    row[f"{key}_std"] = statistics.stdev(values) if len(values) == len(beds) > 1 else None
+                out.append(row)
+    return out
+
+
 def layers_figure(profiles: dict[str, list[dict]], path: Path) -> Path:
     """Solid fraction and Q00 layer by layer (the :func:`layers` of each run, by label) side by
     side against the height; a PNG at ``path``: how a thin bed's density and order vary from its
@@ -557,6 +605,8 @@ def main(argv: list[str] | None = None) -> int:
     deepest = sub.add_parser("k-deepest", help="k of final.gsd of run folders (or of GSD files: a checkpoint of a "
                              "run under way) beside k with every point of a manifold at its deepest overlap")
     deepest.add_argument("runs", nargs="+", type=Path)
+    sub.add_parser("thin-beds", help="the flat, flat & elongated and elongated series as the study's cells would "
+                   "measure them: bed height, phi of the bottom layers, phi by the study's rule")
     sub.add_parser("drift", help="how far each capped study run was still settling over its last 200 and 100 "
                    "sqrt(d/g): centre-of-mass descent and the solid fraction it would add")
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
@@ -585,6 +635,13 @@ def main(argv: list[str] | None = None) -> int:
         for seed, names in CAPPED.items():
             for name in names:
                 print(json.dumps({"run": f"{name}/seed-{seed}", **settling_drift(STUDY_RUNS / name / f"seed-{seed}")}))
+    elif args.action == "thin-beds":
+        print("| mixture | study's cell (d) | bed height (d) | bulk phi | phi of the layers below the height | phi by the study's rule |")
+        print("|---|---|---|---|---|---|")
+        for row in thin_beds():
+            cells = [f"{row[k]:.4f} ± {row[k + '_std']:.4f}" if row[k] is not None else "–"
+                     for k in ("phi_bulk", "phi_layers", "phi_study")]
+            print(f"| {row['mixture']} | {row['cell']:g} | {row['height']:.1f} | " + " | ".join(cells) + " |")
     elif args.action == "status":
         plan = plan_status()
         for row in plan:

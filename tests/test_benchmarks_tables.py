@@ -277,3 +277,22 @@ def test_the_plan_status_tells_finished_checkpointed_and_unstarted_runs(sensitiv
                                         "t": 42.25, "cpu_h": 0.5}
     assert plan["a_spheres/seed-2"]["state"] == "checkpoint" and plan["a_spheres/seed-2"]["t"] == 7.5
     assert plan["a_spheres/seed-3"]["state"] == "not started" and plan["a_spheres/seed-3"]["t"] is None
+
+
+def test_a_thin_bed_in_a_wider_cell_is_the_bottom_layers_of_the_run(sensitivity, tmp_path):
+    """The same grains in a cell twice as wide stand a quarter as high; their solid fraction is
+    the profile's over the whole layers below that height, and the bulk where a bulk region exists."""
+    run = tmp_path / "seed-1"
+    run.mkdir()
+    z = [0.05 + 0.1 * i for i in range(80)]
+    phi = [0.70 if zz < 1.0 else 0.60 if zz < 2.0 else 0.50 for zz in z]
+    (run / "analysis.json").write_text(json.dumps({"bulk": {"z_surface": 8.0},
+                                                   "solid_fraction": {"bulk": 0.55, "profile_z": z, "profile_phi": phi}}))
+    (run / "task.json").write_text(json.dumps({"config": {"lateral_size": 4.0}}))
+    wide = sensitivity.thin_bed(run, 8.0)
+    assert wide["height"] == pytest.approx(2.0)
+    assert wide["phi_layers"] == pytest.approx(0.65) and wide["phi_study"] == pytest.approx(0.65)
+    same = sensitivity.thin_bed(run, 4.0)
+    assert same["height"] == pytest.approx(8.0) and same["phi_study"] == 0.55
+    narrow = sensitivity.thin_bed(run, 2.0)
+    assert narrow["phi_layers"] is None and narrow["phi_study"] == 0.55
