@@ -504,8 +504,10 @@ def thin_bed(run: Path, cell: float) -> dict:
     grains: its bed height ``H = z_s (L / cell)^2`` (z_s the run's surface, L its cell) and, a thin
     bed being the bottom of a thick one (measured on the study's cells for the flat and flat &
     elongated grains), the solid fraction of the run's profile over the whole 1 d layers below
-    ``H``: ``phi_layers`` (None where ``H`` is below 1 d or above the run's own bed). ``phi_study``
-    is what the study's rule would report: the bulk where ``H >= BULK_BED``, else ``phi_layers``."""
+    ``H``: ``phi_layers`` (None where ``H`` is below 1 d or above the run's own bed), and over the
+    bed less ``BED_SKIN`` at the floor and below ``H``: ``phi_bed`` (None where that leaves less
+    than 1 d). ``phi_study`` is what the study's rule would report: the bulk where
+    ``H >= BULK_BED``, else ``phi_layers``."""
     a = json.loads((run / "analysis.json").read_text())
     own = json.loads((run / "task.json").read_text())["config"].get("lateral_size", 8.0)
     surface = a["bulk"]["z_surface"]
@@ -514,8 +516,10 @@ def thin_bed(run: Path, cell: float) -> dict:
     top = math.floor(height)
     kept = [f for zz, f in zip(z, phi) if zz < top]
     layers_phi = statistics.fmean(kept) if kept and height <= surface else None
+    inner = [f for zz, f in zip(z, phi) if BED_SKIN <= zz <= height - BED_SKIN]
+    bed_phi = statistics.fmean(inner) if height - 2 * BED_SKIN >= 1.0 and height <= surface else None
     bulk = a["solid_fraction"]["bulk"]
-    return {"height": height, "phi_layers": layers_phi, "phi_bulk": bulk,
+    return {"height": height, "phi_layers": layers_phi, "phi_bed": bed_phi, "phi_bulk": bulk,
             "phi_study": bulk if height >= BULK_BED else layers_phi}
 
 
@@ -531,7 +535,7 @@ def thin_beds() -> list[dict]:
             for cell in cells:
                 beds = [thin_bed(run, cell) for run in sorted((STUDY_RUNS / name).glob("seed-*"))]
                 row = {"mixture": name, "cell": cell, "height": statistics.fmean(b["height"] for b in beds)}
-                for key in ("phi_bulk", "phi_layers", "phi_study"):
+                for key in ("phi_bulk", "phi_layers", "phi_bed", "phi_study"):
                     values = [b[key] for b in beds if b[key] is not None]
                     row[key] = statistics.fmean(values) if len(values) == len(beds) else None
                     row[f"{key}_std"] = statistics.stdev(values) if len(values) == len(beds) > 1 else None
@@ -636,11 +640,12 @@ def main(argv: list[str] | None = None) -> int:
             for name in names:
                 print(json.dumps({"run": f"{name}/seed-{seed}", **settling_drift(STUDY_RUNS / name / f"seed-{seed}")}))
     elif args.action == "thin-beds":
-        print("| mixture | study's cell (d) | bed height (d) | bulk phi | phi of the layers below the height | phi by the study's rule |")
-        print("|---|---|---|---|---|---|")
+        print("| mixture | study's cell (d) | bed height (d) | bulk phi | phi of the whole layers below the height "
+              f"| phi less {BED_SKIN:g} d at the floor and the top | phi by the study's rule |")
+        print("|---|---|---|---|---|---|---|")
         for row in thin_beds():
             cells = [f"{row[k]:.4f} ± {row[k + '_std']:.4f}" if row[k] is not None else "–"
-                     for k in ("phi_bulk", "phi_layers", "phi_study")]
+                     for k in ("phi_bulk", "phi_layers", "phi_bed", "phi_study")]
             print(f"| {row['mixture']} | {row['cell']:g} | {row['height']:.1f} | " + " | ".join(cells) + " |")
     elif args.action == "status":
         plan = plan_status()

@@ -293,6 +293,8 @@ def test_a_thin_bed_in_a_wider_cell_is_the_bottom_layers_of_the_run(sensitivity,
     assert wide["height"] == pytest.approx(2.0)
     assert wide["phi_layers"] == pytest.approx(0.65) and wide["phi_study"] == pytest.approx(0.65)
     same = sensitivity.thin_bed(run, 4.0)
+    assert wide["phi_bed"] is None
     assert same["height"] == pytest.approx(8.0) and same["phi_study"] == 0.55
+    assert same["phi_bed"] == pytest.approx((0.60 * 10 + 0.50 * 50) / 60)
     narrow = sensitivity.thin_bed(run, 2.0)
     assert narrow["phi_layers"] is None and narrow["phi_study"] == 0.55
