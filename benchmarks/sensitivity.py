@@ -644,7 +644,8 @@ def main(argv: list[str] | None = None) -> int:
               f"| phi less {BED_SKIN:g} d at the floor and the top | phi by the study's rule |")
         print("|---|---|---|---|---|---|---|")
         for row in thin_beds():
-            cells = [f"{row[k]:.4f} ± {row[k + '_std']:.4f}" if row[k] is not None else "–"
+            cells = ["–" if row[k] is None else f"{row[k]:.4f}" if row[k + "_std"] is None
+                     else f"{row[k]:.4f} ± {row[k + '_std']:.4f}"
                      for k in ("phi_bulk", "phi_layers", "phi_bed", "phi_study")]
             print(f"| {row['mixture']} | {row['cell']:g} | {row['height']:.1f} | " + " | ".join(cells) + " |")
     elif args.action == "status":
