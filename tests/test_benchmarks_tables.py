@@ -298,3 +298,67 @@ def test_a_thin_bed_in_a_wider_cell_is_the_bottom_layers_of_the_run(sensitivity,
     assert same["phi_bed"] == pytest.approx((0.60 * 10 + 0.50 * 50) / 60)
     narrow = sensitivity.thin_bed(run, 2.0)
     assert narrow["phi_layers"] is None and narrow["phi_study"] == 0.55
+
+
+@pytest.fixture(scope="module")
+def phi_mc():
+    return _script("phi_monte_carlo")
+
+
+def test_random_points_cover_an_fcc_crystal_at_its_exact_solid_fraction(phi_mc):
+    import numpy as np
+    from packing_builders import fcc_spheres
+
+    packing, a = fcc_spheres(cells_xy=3, cells_z=4)
+    rng = np.random.default_rng(1)
+    m = 200_000
+    z0, z1 = a, 3 * a  # two whole unit cells of the crystal
+    pts = rng.random((m, 3)) * np.array([3 * a, 3 * a, z1 - z0]) + np.array([0.0, 0.0, z0])
+    covered = phi_mc.coverage(packing, pts)
+    exact = math.pi / (3 * math.sqrt(2))
+    se = math.sqrt(exact * (1 - exact) / m)
+    assert abs(np.mean(covered > 0) - exact) < 4 * se
+    assert covered.max() == 1  # touching spheres: no point in two
+
+
+def test_random_points_measure_a_turned_pinacoid_across_the_periodic_edge(phi_mc):
+    import numpy as np
+    from packing_builders import single
+
+    from granpack.rotations import quat_from_axis_angle
+    from granpack.shapes import Pinacoid
+
+    grain = Pinacoid.from_size(1.0, elongation=2.0, flatness=3.0)
+    q = quat_from_axis_angle((1.0, 2.0, 0.5), 0.7)
+    packing = single(grain, position=(0.05, 2.9, 2.0), quaternion=q, lateral=3.0)  # across both edges
+    rng = np.random.default_rng(2)
+    m = 400_000
+    r = packing.state.shapes.radius[0]
+    pts = rng.random((m, 3)) * np.array([3.0, 3.0, 2 * r]) + np.array([0.0, 0.0, 2.0 - r])
+    inside = phi_mc.coverage(packing, pts)
+    box_volume = 9.0 * 2 * r
+    p = grain.volume / box_volume
+    assert abs(np.mean(inside) - p) < 4 * math.sqrt(p * (1 - p) / m)
+    from granpack.rotations import quat_to_matrix
+
+    corners = packing.state.shapes.vertices @ quat_to_matrix(q).T  # world offsets of the vertices
+    centre = packing.state.position[0]
+    assert phi_mc.coverage(packing, centre + 0.95 * corners).tolist() == [1] * len(corners)
+    assert phi_mc.coverage(packing, centre + 1.05 * corners).tolist() == [0] * len(corners)
+
+
+def test_points_in_two_overlapping_spheres_measure_their_lens(phi_mc):
+    import numpy as np
+    from packing_builders import sphere_column
+
+    packing = sphere_column(side=1, layers=2, overlap=0.2)
+    z = packing.state.position[:, 2]
+    centre_gap = float(z[1] - z[0])
+    lens = math.pi * (2.0 + centre_gap) * (1.0 - centre_gap) ** 2 / 12  # two unit spheres
+    rng = np.random.default_rng(3)
+    m = 400_000
+    lx = packing.state.box.lx
+    pts = rng.random((m, 3)) * np.array([lx, lx, 1.0]) + np.array([0.0, 0.0, z[0]])
+    twice = np.mean(phi_mc.coverage(packing, pts) == 2)
+    p = lens / (lx * lx * 1.0)
+    assert lens > 0.02 and abs(twice - p) < 4 * math.sqrt(p * (1 - p) / m)
