@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -77,9 +78,11 @@ def coverage(packing: Packing, points: np.ndarray) -> np.ndarray:
 
 def check(packing: Packing, n_points: int, rng: np.random.Generator) -> dict:
     """The exact bulk phi of ``packing`` beside its Monte Carlo estimates (module docstring)."""
-    sf = SolidFraction().compute(packing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        sf = SolidFraction().compute(packing)
     if not sf.has_bulk:
-        raise SystemExit(f"error: the packing has no bulk region ({sf.no_bulk_reason})")
+        raise ValueError(sf.no_bulk_reason)
     box = packing.state.box
     z0, z1 = sf.z_bottom, sf.z_top
     covered = np.empty(0, dtype=np.int64)
@@ -112,7 +115,11 @@ def main(argv=None) -> int:
         if not path.is_file():
             print(f"error: {path}: no such file", file=sys.stderr)
             return 2
-        out = {"run": str(run), **check(read_packing(path), args.points, rng)}
+        try:
+            out = {"run": str(run), **check(read_packing(path), args.points, rng)}
+        except ValueError as exc:
+            print(f"error: {run}: {exc}", file=sys.stderr)
+            return 2
         out["difference_sum"] = out["phi_sum"] - out["phi_exact"]
         print(json.dumps(out), flush=True)
     return 0
