@@ -108,6 +108,7 @@ FACTORS: tuple[tuple[str, str, dict], ...] = (
     ("width-x3", "spheres-small-30", {"n_particles": 9000, "lateral_scale": math.sqrt(3.0)}),
     ("deposit-lmgc", "pinacoids-small-0", {"deposit": {"method": "lmgc"}}),
     ("deposit-lmgc", "pinacoids-small-30", {"deposit": {"method": "lmgc"}}),
+    ("deposit-lmgc", "flat-elongated-100", {"deposit": {"method": "lmgc"}}),
     ("engine-lmgc", "pinacoids-small-30", LMGC_ENGINE),
 )
 
