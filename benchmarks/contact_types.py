@@ -19,7 +19,7 @@ tolerance of 1e-4, so a manifold force below about 1e-4 of the mean is within it
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -108,7 +108,7 @@ def report(path: Path) -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 2:
-        sys.exit(__doc__)
-    for arg in sys.argv[1:]:
-        report(Path(arg))
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("packings", nargs="+", type=Path, help="run folders (their final.gsd) or packing GSD files")
+    for packing_path in parser.parse_args().packings:
+        report(packing_path)
