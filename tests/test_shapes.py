@@ -194,3 +194,44 @@ def test_shape_table_layout():
     assert verts.max() < 8
     np.testing.assert_allclose(t.vertices[t.vertex_start[k] :][verts] @ t.face_normals[f0], t.face_offsets[f0])
     np.testing.assert_allclose(t.radius, [0.5, 1 / 6, 0.5])
+
+
+def _blas_kernels() -> list[str]:
+    """Two OpenBLAS kernels this CPU runs that round a dot product differently where it can:
+    the AVX-512 kernel beside the AVX2 one, else two AVX2-era ones."""
+    try:
+        flags = open("/proc/cpuinfo").read()
+    except OSError:
+        return []
+    if " avx512f" in flags:
+        return ["SkylakeX", "Haswell"]
+    return ["Haswell", "Sandybridge"] if " avx2" in flags else []
+
+
+_TABLE_BYTES = """
+import hashlib, numpy as np
+from granpack.shapes import PINACOID_FAMILIES, Pinacoid, ShapeTable
+t = ShapeTable.from_shapes([Pinacoid.family(f, s) for f in PINACOID_FAMILIES for s in (1.0, 1 / 3)])
+h = hashlib.sha256()
+for name, value in sorted(vars(t).items()):
+    if isinstance(value, np.ndarray):
+        h.update(name.encode()); h.update(value.tobytes())
+print(h.hexdigest())
+"""
+
+
+@pytest.mark.skipif(len(_blas_kernels()) < 2, reason="needs an x86-64 Linux CPU with AVX2")
+def test_shape_table_has_the_same_bits_whatever_the_blas_kernel():
+    """The machine picks OpenBLAS's kernel and the kernels round the last bit differently (the
+    elongated pinacoid's edge directions did): the shapes, hence every packing of a seed, must not
+    depend on it."""
+    import os
+    import subprocess
+    import sys
+
+    digests = {
+        kernel: subprocess.run([sys.executable, "-c", _TABLE_BYTES], capture_output=True, text=True, check=True,
+                               env={**os.environ, "OPENBLAS_CORETYPE": kernel}).stdout.strip()
+        for kernel in _blas_kernels()
+    }
+    assert len(set(digests.values())) == 1, digests

@@ -16,6 +16,7 @@ With ``A = [a b c]`` (vertex columns) and ``D = det A``:
 from __future__ import annotations
 
 import copy
+import math
 from functools import cached_property
 
 import numpy as np
@@ -51,11 +52,21 @@ def mass_properties(vertices: np.ndarray, faces: list[np.ndarray]) -> tuple[floa
     return float(volume), centroid, inertia
 
 
+def _length(v: np.ndarray) -> float:
+    """Euclidean length of a 3-vector, ``sqrt(x² + y² + z²)`` summed in this order.
+
+    ``np.linalg.norm`` goes through BLAS, whose kernel is chosen by the CPU and rounds the last
+    bit differently from one machine to another; a shape built here has the same bits on every
+    machine, so that a seed gives the same packing everywhere."""
+    x, y, z = (float(c) for c in v)
+    return math.sqrt(x * x + y * y + z * z)
+
+
 def _unique_directions(vectors: np.ndarray, tol: float = 1e-9) -> np.ndarray:
     """Unit vectors with duplicates up to sign removed (first occurrence kept, sign normalised)."""
     out: list[np.ndarray] = []
     for v in vectors:
-        u = v / np.linalg.norm(v)
+        u = v / _length(v)
         if not any(abs(abs(float(u @ w)) - 1.0) < tol for w in out):
             out.append(u)
     return np.array(out).reshape(-1, 3)
@@ -151,11 +162,11 @@ class ConvexPolyhedron(Shape):
         faces, normals, offsets = [], [], []
         for g in groups:
             normal = eq[g].mean(axis=0)[:3]
-            normal /= np.linalg.norm(normal)
+            normal /= _length(normal)
             idx = np.unique(hull.simplices[g].ravel())
             centre = pts[idx].mean(axis=0)
             e1 = pts[idx[0]] - centre
-            e1 /= np.linalg.norm(e1)
+            e1 /= _length(e1)
             e2 = np.cross(normal, e1)
             rel = pts[idx] - centre
             order = np.argsort(np.arctan2(rel @ e2, rel @ e1))
