@@ -1,6 +1,7 @@
 """Exact checks of shapes: pinacoid closed forms, Platonic solids, polyhedron validation."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -200,7 +201,7 @@ def _blas_kernels() -> list[str]:
     """Two OpenBLAS kernels this CPU runs that round a dot product differently where it can:
     the AVX-512 kernel beside the AVX2 one, else two AVX2-era ones."""
     try:
-        flags = open("/proc/cpuinfo").read()
+        flags = Path("/proc/cpuinfo").read_text()
     except OSError:
         return []
     if " avx512f" in flags:

@@ -56,8 +56,9 @@ def _length(v: np.ndarray) -> float:
     """Euclidean length of a 3-vector, ``sqrt(x² + y² + z²)`` summed in this order.
 
     ``np.linalg.norm`` goes through BLAS, whose kernel is chosen by the CPU and rounds the last
-    bit differently from one machine to another; a shape built here has the same bits on every
-    machine, so that a seed gives the same packing everywhere."""
+    bit differently from one machine to another; with this length the edge directions and face
+    normals, hence the pinacoids' shape tables, have the same bits on every machine, so that a
+    seed gives the same packing everywhere."""
     x, y, z = (float(c) for c in v)
     return math.sqrt(x * x + y * y + z * z)
 
