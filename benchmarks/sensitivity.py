@@ -18,6 +18,14 @@ its factor names:
   pinacoids, the mixture whose light grains a plain Gauss–Seidel relaxes slowest;
 - ``time-600``: the study runs stopped at the cap of 300 sqrt(d/g), run again from their seed with
   a cap of 600 (one campaign file per seed, since each such run has its own seed);
+- ``size-ratio``, ``small-23``, ``tapping``, ``end-game-off`` (``bidisperse.toml``, two seeds, and
+  ``bidisperse-one-seed.toml``): why granpack's pinacoids gain less from small grains than its
+  spheres. The 30 % small mixtures of both families with small grains of d/2 and d/5 (mixtures
+  ``...-ratio-R``; the study's d/3 is the default), the 23 % small pinacoids, and the 30 % small
+  pinacoids poured with restitution 0.5 (the pile shaken by its own rebounds while it collapses)
+  or settled without the end game's damping. A mixture whose small grains change is given the
+  cell and grain count of :func:`validate_pinacoids.plan_cell` (an expected column of 8 d, a cell
+  of at least 3 d), as the study's own mixtures were;
 - ``screen-*``: where the study's overlaps come from, screened on 1000 one-size isometric
   pinacoids (a third of the study's cell area, its bed height): granpack's default, the study
   engine's regime, and that regime with each further element of the study's engine granpack can
@@ -72,7 +80,7 @@ STUDY = ROOT / "examples" / "study.toml"
 CONFIGS = HERE / "validation" / "configs"
 KEPT = HERE / "validation" / "runs"
 #: the campaigns of ``KEPT`` that belong to the sensitivity study (the others are other validations)
-SENSITIVITY_CAMPAIGNS = ("sensitivity", "screening", "time-600-seed-*")
+SENSITIVITY_CAMPAIGNS = ("sensitivity", "screening", "time-600-seed-*", "bidisperse*")
 STUDY_RUNS = HERE / "study"
 CSV = HERE / "validation" / "sensitivity.csv"
 FIGURE = ROOT / "docs" / "validation" / "figures" / "sensitivity.png"
@@ -111,6 +119,21 @@ FACTORS: tuple[tuple[str, str, dict], ...] = (
     ("deposit-lmgc", "flat-elongated-100", {"deposit": {"method": "lmgc"}}),
     ("engine-lmgc", "pinacoids-small-30", LMGC_ENGINE),
 )
+
+#: (factor, mixture of examples/study.toml, overrides, seeds) of the bidisperse study; ``small_size``
+#: (d) and ``small_share`` (of the solid volume) change the small population, and the mixture is
+#: then renamed and its cell planned again (:func:`_replanned`)
+BIDISPERSE: tuple[tuple[str, str, dict, int], ...] = (
+    ("size-ratio", "spheres-small-30", {"small_size": 1 / 2}, 2),
+    ("size-ratio", "spheres-small-30", {"small_size": 1 / 5}, 2),
+    ("size-ratio", "pinacoids-small-30", {"small_size": 1 / 2}, 2),
+    ("small-23", "pinacoids-small-30", {"small_share": 0.23}, 2),
+    ("tapping", "pinacoids-small-30", {"solver": {"restitution": 0.5}}, 1),
+    ("end-game-off", "pinacoids-small-30", {"end_game": {"mode": "none"}}, 1),
+    ("size-ratio", "pinacoids-small-30", {"small_size": 1 / 5}, 1),
+)
+#: the column a replanned mixture is given, d, and its narrowest cell, d (the study's rule)
+PLANNED_COLUMN, PLANNED_LEAST_CELL = 8.0, 3.0
 
 #: the grains of a screening run (a third of the study's, in a third of its cell area)
 SCREEN_GRAINS = 1000
@@ -183,10 +206,41 @@ def _campaign_text(header: str, replicas: int, base: dict, mixtures: list[dict])
     return "\n".join(lines) + "\n"
 
 
+def _replanned(study: dict, mixture: dict, small_size: float | None, small_share: float | None) -> dict:
+    """``mixture`` with its ``small`` population resized (``small_size``, d) or given another share
+    of the solid volume (``small_share``, the ``large`` population the rest), renamed for it
+    (``pinacoids-small-23``, ``spheres-small-30-ratio-5``), its cell and grains planned anew."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("validate_pinacoids", HERE / "validate_pinacoids.py")
+    validate_pinacoids = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(validate_pinacoids)
+    populations = {p["name"]: p for p in mixture["populations"]}
+    base = mixture["name"].rpartition("-")[0]
+    if small_share is not None:
+        populations["small"]["volume_fraction"] = round(small_share, 6)
+        populations["large"]["volume_fraction"] = round(1.0 - small_share, 6)
+        mixture["name"] = f"{base}-{round(100 * small_share)}"
+        mixture["share"] = round(small_share, 6)
+    if small_size is not None:
+        populations["small"]["size"] = round(small_size, 10)
+        mixture["name"] = f"{mixture['name']}-ratio-{round(1.0 / small_size):d}"
+    lateral, n, _ = validate_pinacoids.plan_cell(mixture["populations"], study["base"]["n_particles"],
+                                                 study["base"]["lateral_size"], PLANNED_COLUMN, PLANNED_LEAST_CELL)
+    mixture["lateral_size"] = lateral
+    if n != study["base"]["n_particles"]:
+        mixture["n_particles"] = n
+    return mixture
+
+
 def _varied(study: dict, factor: str, name: str, overrides: dict) -> dict:
     """The study's mixture ``name`` with ``overrides`` applied, renamed ``FACTOR_NAME``."""
     mixture = copy.deepcopy(next(m for m in study["mixtures"] if m["name"] == name))
     overrides = dict(overrides)
+    small_size, small_share = overrides.pop("small_size", None), overrides.pop("small_share", None)
+    if small_size is not None or small_share is not None:
+        mixture = _replanned(study, mixture, small_size, small_share)
+        name = mixture["name"]
     scale = overrides.pop("lateral_scale", None)
     if scale is not None:
         mixture["lateral_size"] = round(mixture.get("lateral_size", study["base"]["lateral_size"]) * scale, 4)
@@ -221,6 +275,14 @@ def write_configs() -> list[Path]:
         "granpack's default and all those elements together.\n"
         "Written by `python benchmarks/sensitivity.py configs`; do not edit by hand.", 1, study["base"], mixtures))
     written.append(path)
+    for seeds, path in ((2, CONFIGS / "bidisperse.toml"), (1, CONFIGS / "bidisperse-one-seed.toml")):
+        mixtures = [_varied(study, factor, name, overrides) for factor, name, overrides, n in BIDISPERSE if n == seeds]
+        path.write_text(_campaign_text(
+            "Why granpack's pinacoids gain less from small grains than its spheres: the size ratio, the\n"
+            "23 % point, a pour shaken by restitution, the end game without damping (seeds 1 to "
+            f"{seeds}).\nWritten by `python benchmarks/sensitivity.py configs`; do not edit by hand.",
+            seeds, study["base"], mixtures))
+        written.append(path)
     for seed, names in CAPPED.items():
         base = copy.deepcopy(study["base"])
         base["seed"] = seed
