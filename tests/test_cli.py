@@ -205,6 +205,41 @@ def test_no_command_version_and_help_from_the_installed_entry_point():
     assert helped.returncode == 0 and "--overwrite" in helped.stdout and "--resume" in helped.stdout
 
 
+@pytest.mark.parametrize("command", ["run", "campaign", "check"])
+def test_help_shows_flags_without_a_value_and_wraps_each_paragraph_as_one_text(command, capsys, monkeypatch):
+    """``--resume`` takes no value, so its help shows none (``<bool>`` suggested ``--resume true``);
+    a paragraph of a command's help is wrapped to the terminal as one text, not cut again at the
+    line ends of its docstring."""
+    import typer.main
+
+    from granpack.cli import app
+
+    width = 60
+    monkeypatch.setenv("COLUMNS", str(width))
+    code, out, err = run_main([command, "--help"], capsys)
+    assert (code, err) == (0, "")
+    lines = out.splitlines()
+    options = typer.main.get_command(app).commands[command].params
+    flags = [param.opts[0] for param in options if getattr(param, "is_flag", False)] + ["--help"]
+    for flag in flags:
+        row = next(line.split() for line in lines if line.split()[:1] == [flag])
+        assert not row[1].startswith("<"), row  # e.g. "--resume <bool>"
+    assert "<bool>" not in out and "list[" not in out
+    paragraphs, current = [], []
+    for line in lines[1:]:
+        if line.startswith("  ") and not line.startswith("   ") and not line.strip().endswith(":"):
+            current.append(line.strip())
+        elif current:
+            paragraphs.append(current)
+            current = []
+        if line.endswith(":") and not line.startswith(" "):  # "Arguments:", "Options:"
+            break
+    assert paragraphs
+    for paragraph in paragraphs:  # every line but the last is full: the next word would not fit
+        for line, following in zip(paragraph, paragraph[1:]):
+            assert 2 + len(line) + 1 + len(following.split()[0]) > width - 2, (line, following)
+
+
 def test_usage_errors_are_caught_as_the_installed_typer_raises_them():
     """The handler catches the exception classes of the click that typer really uses (typer >= 0.20
     ships its own copy: catching the click package's classes never matched)."""

@@ -34,7 +34,8 @@ from granpack.shapes import ShapeError
 
 __all__ = ["app", "main", "demo_config"]
 
-app = typer.Typer(add_completion=False, help="Dense random packings of rigid grains (NSCD).")
+#: plain help (click's): flags without a value type, each paragraph wrapped to the terminal as one text
+app = typer.Typer(add_completion=False, rich_markup_mode=None, help="Dense random packings of rigid grains (NSCD).")
 
 
 class _Stop(Exception):
@@ -269,7 +270,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
 
 @app.command()
 def check(
-    config: Path = typer.Argument(..., help="Run config or campaign spec (TOML)."),
+    config: Path = typer.Argument(..., metavar="CONFIG", help="Run config or campaign spec (TOML)."),
     json_output: bool = typer.Option(False, "--json", help="Print the result as JSON."),
 ) -> None:
     """Validate CONFIG and print the mixture table and the settings (one row per mixture for a campaign)."""
@@ -420,7 +421,7 @@ def _protect_input(config_path: Path, out: Path, resolved_text: str) -> None:
 
 @app.command()
 def run(
-    config: Path = typer.Argument(..., help="Run config (TOML)."),
+    config: Path = typer.Argument(..., metavar="CONFIG", help="Run config (TOML)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     resume: bool = typer.Option(False, "--resume", help="Continue the run in OUT from its checkpoint."),
     overwrite: bool = typer.Option(False, "--overwrite",
@@ -452,7 +453,7 @@ def run(
 
 @app.command()
 def analyze(
-    run_dir: Path = typer.Argument(..., help="A run folder holding final.gsd."),
+    run_dir: Path = typer.Argument(..., metavar="RUN_DIR", help="A run folder holding final.gsd."),
     json_output: bool = typer.Option(False, "--json", help="Print the analysis (analysis.json) as JSON."),
 ) -> None:
     """Analyse a packing: writes RUN_DIR/analysis.json and prints a table."""
@@ -479,12 +480,12 @@ def analyze(
 
 @app.command()
 def campaign(
-    spec: Path = typer.Argument(..., help="Campaign spec (TOML)."),
+    spec: Path = typer.Argument(..., metavar="SPEC", help="Campaign spec (TOML)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
     workers: Optional[int] = typer.Option(None, "--workers", help="Workers of the local Dask cluster."),
     mixture: Optional[list[str]] = typer.Option(
-        None, "--mixture", help="Run only the mixtures matching this name or shell pattern, e.g. 'spheres-*' (repeatable; "
+        None, "--mixture", metavar="PATTERN", help="Run only the mixtures matching this name or shell pattern, e.g. 'spheres-*' (repeatable; "
         "default all). The tables still list every run."
     ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Recompute the runs that OUT holds for another config "
@@ -521,9 +522,9 @@ def campaign(
 
 @app.command()
 def figures(
-    run_dir: Path = typer.Argument(..., help="A run or campaign folder."),
+    run_dir: Path = typer.Argument(..., metavar="RUN_DIR", help="A run or campaign folder."),
     mixture: Optional[list[str]] = typer.Option(
-        None, "--mixture", help="Campaign: a mixture to show in the g(r) and homogeneity figures (repeatable; default all)."
+        None, "--mixture", metavar="NAME", help="Campaign: a mixture to show in the g(r) and homogeneity figures (repeatable; default all)."
     ),
 ) -> None:
     """PNG/SVG figures for a run or a campaign, written into RUN_DIR/figures/; says which it skipped and why."""
