@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import os
 import shutil
 import signal
@@ -550,6 +551,42 @@ def test_sigint_or_sigterm_to_a_running_command_stops_it_cleanly(tmp_path, defau
     assert proc.returncode == 130 and stdout == "" and "Traceback" not in err
     assert rest.count("\n") == 1 and rest.startswith("interrupted at t = ") and rest.rstrip().endswith("--resume")
     assert (out / "checkpoint.gsd").is_file() and not (out / "final.gsd").exists()
+
+
+@pytest.mark.skipif(shutil.which("nohup") is None or shutil.which("sh") is None, reason="needs nohup and sh")
+def test_sigterm_to_a_run_started_with_nohup_writes_the_step_checkpoint(tmp_path):
+    """``nohup granpack run ... &`` from a script, as users start long runs: the shell starts the
+    job with SIGINT ignored. SIGTERM must still stop it at the end of the step with that step's
+    checkpoint written (not the last periodic one), exit 130."""
+    config = tmp_path / "long.toml"
+    config.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 500.0\nwindow = 100000")
+                      .replace("checkpoint_interval = 0.5", "checkpoint_interval = 400.0"))
+    out, log = tmp_path / "run", tmp_path / "nohup.log"
+    script = (f'nohup "{sys.executable}" -m granpack run "{config}" --out "{out}" > "{log}" 2>&1 &\n'
+              'echo $!\nwait $!\necho "exit $?"\n')
+    shell = subprocess.Popen(["sh", "-c", script], stdout=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        pid = int(shell.stdout.readline())
+        deadline = time.monotonic() + 300
+        while "settling t = " not in (log.read_text() if log.is_file() else ""):
+            assert time.monotonic() < deadline and shell.poll() is None, log.read_text() if log.is_file() else ""
+            time.sleep(0.2)
+        with open(f"/proc/{pid}/status") if Path(f"/proc/{pid}/status").is_file() else contextlib.nullcontext() as f:
+            if f is not None:  # the job's SIGINT is ignored, as under nohup ... &
+                ignored = int(next(line for line in f if line.startswith("SigIgn:")).split()[1], 16)
+                assert ignored & (1 << (signal.SIGINT - 1))
+        os.kill(pid, signal.SIGTERM)
+        rest, _ = shell.communicate(timeout=120)
+    finally:
+        if shell.poll() is None:
+            os.killpg(shell.pid, signal.SIGKILL)
+    assert rest.strip() == "exit 130"
+    last = log.read_text().splitlines()[-1]
+    assert last.startswith("interrupted at t = ") and last.endswith("--resume"), last
+    step = int(re.search(r"\(step (\d+)\)", last).group(1))
+    from granpack.io.gsd import read_packing
+
+    assert step > 0 and read_packing(out / "checkpoint.gsd").metadata["counters"]["step"] == step
 
 
 # ----------------------------------------------------------------------------- output for scripts and logs

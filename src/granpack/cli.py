@@ -590,27 +590,17 @@ def _commands() -> str:
     return ", ".join(getattr(typer.main.get_command(app), "commands", {}))
 
 
-def _sigterm_as_ctrl_c(signum, frame) -> None:
-    """SIGTERM handler: do what Ctrl-C does now. The current SIGINT handler is called (while a run
-    settles, it asks the run to stop at the end of its step with its checkpoint written; elsewhere
-    Python's raises KeyboardInterrupt); where SIGINT is ignored (a job started in the background
-    by a shell), KeyboardInterrupt is raised, so SIGTERM still stops the command."""
-    handler = signal.getsignal(signal.SIGINT)
-    if callable(handler):
-        handler(signal.SIGINT, frame)
-    else:
-        raise KeyboardInterrupt
-
-
 @contextlib.contextmanager
 def _sigterm_taken_as_ctrl_c():
-    """While the command runs, SIGTERM goes to :func:`_sigterm_as_ctrl_c` (only over the default
+    """While the command runs, SIGTERM goes to :func:`~granpack.interrupt.sigterm_as_ctrl_c` (only over the default
     action, which would end the process at once: a half-written step lost since the last
     checkpoint, a campaign's tables not written)."""
     if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         yield
         return
-    previous = signal.signal(signal.SIGTERM, _sigterm_as_ctrl_c)
+    from granpack.interrupt import sigterm_as_ctrl_c
+
+    previous = signal.signal(signal.SIGTERM, sigterm_as_ctrl_c)
     try:
         yield
     finally:

@@ -1,21 +1,18 @@
-"""What a run tells while it settles: progress bars or lines, one-line notes, and Ctrl-C.
+"""What a run tells while it settles: progress bars or lines, and one-line notes.
 
-The settling loop (:mod:`granpack.settling`) reports to :class:`SettlingProgress` as an observer,
-and the checkpoints of :mod:`granpack.simulation` read the interrupt flag once per step; these
-decide where the messages go (stderr, a bar, or the run's ``progress.log``) and how often.
+The settling loop (:mod:`granpack.settling`) reports to :class:`SettlingProgress` as an observer;
+these decide where the messages go (stderr, a bar, or the run's ``progress.log``) and how often.
 """
 
 from __future__ import annotations
 
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
 from granpack.equilibrium import EquilibriumReport
 
-__all__ = ["PROGRESS_LINE_SECONDS", "Interrupt", "Lines", "Notes", "SettlingProgress", "criteria_met", "progress_mode"]
+__all__ = ["PROGRESS_LINE_SECONDS", "Lines", "Notes", "SettlingProgress", "criteria_met", "progress_mode"]
 
 
 def progress_mode(progress: bool | str) -> str:
@@ -163,36 +160,4 @@ class SettlingProgress:
     def __exit__(self, *exc):
         if self._bar is not None:
             self._bar.__exit__(*exc)
-        return False
-
-
-class Interrupt:
-    """Ctrl-C while settling: SIGINT sets :attr:`requested`, which the loop reads once per step
-    (it then writes its checkpoint and raises :class:`~granpack.errors.RunInterrupted`); a second
-    Ctrl-C raises KeyboardInterrupt at once.
-
-    A flag rather than an exception because SIGINT often lands inside a Numba kernel, where an
-    exception surfaces as ``SystemError: CPUDispatcher(...) returned a result with an exception
-    set`` with the state half-updated. The handler is installed only in the main thread and only
-    over Python's default one (a host that handles SIGINT itself keeps its handler).
-    """
-
-    def __init__(self):
-        self.requested = False
-        self._previous = None
-
-    def _handle(self, signum, frame) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            self._previous = signal.signal(signal.SIGINT, self._handle)
-        return self
-
-    def __exit__(self, *exc):
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
         return False

@@ -57,7 +57,8 @@ from granpack.io.run_folder import (
 )
 from granpack.mixture import Mixture
 from granpack.nscd import kinetic_energy
-from granpack.progress import Interrupt, Lines, Notes, SettlingProgress, progress_mode
+from granpack.interrupt import Interrupt
+from granpack.progress import Lines, Notes, SettlingProgress, progress_mode
 from granpack.rotations import random_quaternions
 from granpack.run_record import Clock, RunRecord, timeline_csv
 from granpack.settling import STATUS_AT_REST, STATUS_NOT_AT_REST, Settling
