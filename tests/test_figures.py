@@ -189,9 +189,49 @@ def test_campaign_figures_say_what_they_skipped_and_why(campaign_dir, capsys):
     runs.assign(status="failed").to_csv(campaign_dir / "runs.csv", index=False)
     with pytest.raises(SystemExit) as info:
         main(["figures", str(campaign_dir)])
-    out = capsys.readouterr().out
-    assert info.value.code == 0 and out.startswith("no figure written")
-    assert "skipped solid_fraction: no finished run in runs.csv (status 'done')" in out
+    out, err = capsys.readouterr()
+    assert info.value.code == 0 and out.startswith("no figure written") and "skipped" not in out
+    assert "skipped solid_fraction: no finished run in runs.csv (status 'done')" in err.splitlines()  # a note: stderr
+
+
+def test_a_campaign_without_shares_says_so_instead_of_nothing_to_draw(campaign_dir):
+    runs = pd.read_csv(campaign_dir / "runs.csv")
+    runs.assign(share=math.nan).to_csv(campaign_dir / "runs.csv", index=False)
+    skipped = campaign_figures(campaign_dir).skipped
+    assert set(skipped) == {"solid_fraction", "order", "coordination"}
+    assert all("no mixture with a value has a share" in why and "`share`" in why for why in skipped.values())
+
+
+def _extent(artist, renderer):
+    return artist.get_window_extent(renderer)
+
+
+def test_a_family_of_one_point_gets_the_share_scale_and_its_legend_beside_the_point(campaign_dir):
+    """A family of one mixture (share 0) is drawn on the 0-100 % scale, not a few hundredths of a
+    percent around its point; no legend covers a point; the suptitle clears the panel titles."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from granpack.figures import _versus_share
+
+    runs = _read_runs(campaign_dir)
+    runs = runs[(runs["family"] != "spheres") | (runs["share"] == 0)]
+    for fig in (_coordination_figure(runs), _versus_share(runs, "solid_fraction.bulk", "phi", "Solid fraction")):
+        assert isinstance(fig, Figure)
+        canvas = FigureCanvasAgg(fig)
+        canvas.draw()
+        renderer = canvas.get_renderer()
+        single = fig.axes[0]  # the size panel: the spheres family, one share
+        low, high = single.get_xlim()
+        assert low <= 0.0 and high >= 100.0, (low, high)
+        for ax in fig.axes:
+            legend = _extent(ax.get_legend(), renderer)
+            for line in ax.get_lines():
+                for x, y in line.get_xydata():
+                    px, py = ax.transData.transform((x, y))
+                    assert not legend.contains(px, py), (ax.get_title(), x, y)
+            if ax.get_title():
+                assert not _extent(fig._suptitle, renderer).overlaps(_extent(ax.title, renderer))
 
 
 def test_run_figures_skip_an_empty_pair_correlation(tmp_path, rng):

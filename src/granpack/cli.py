@@ -536,7 +536,7 @@ def figures(
     else:
         typer.echo(f"no figure written in {run_dir / 'figures'}")
     for stem, why in getattr(paths, "skipped", {}).items():
-        typer.echo(f"skipped {stem}: {why}")
+        _note(f"skipped {stem}: {why}")
 
 
 @app.command()

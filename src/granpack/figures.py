@@ -440,6 +440,16 @@ def _errorbar(ax: Axes, stats: pd.DataFrame, **style) -> None:
     ax.errorbar(100 * stats["share"], stats["mean"], yerr=stats["std"], capsize=3, **style)
 
 
+def _share_axis(ax: Axes, shares: Iterable[float]) -> None:
+    """Finish a panel against the share (in %): a panel of one share (a family of one mixture)
+    gets the whole share scale instead of matplotlib's few hundredths of a percent around its
+    point, and the legend goes where no point is."""
+    shares = {round(100 * float(s), 9) for s in shares}
+    if len(shares) == 1:
+        ax.set_xlim(-5.0, 105.0)
+    ax.legend(loc="best")
+
+
 def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str, before: str | None = None) -> Figure | None:
     """One panel per group of families (size / shape / other) of ``column`` against the share;
     with ``before``, that column too, open markers and dashed, for the state before gravity."""
@@ -451,16 +461,19 @@ def _versus_share(runs: pd.DataFrame, column: str, ylabel: str, title: str, befo
             groups.setdefault(_panel(family), []).append(family)
     if not groups:
         return None
-    fig = Figure(figsize=(5.5 * len(groups), 4.2))
+    fig = Figure(figsize=(5.5 * len(groups), 4.2), layout="constrained")
     axes = fig.subplots(1, len(groups), squeeze=False, sharey=True)[0]
     for ax, panel in zip(axes, [p for p in ("size", "shape", "other") if p in groups]):
+        shares = []
         for k, family in enumerate(groups[panel]):
-            _errorbar(ax, _series(runs, family, column), marker=_marker(family), color=f"C{k}", label=_label(family))
+            stats = _series(runs, family, column)
+            shares += stats["share"].tolist()
+            _errorbar(ax, stats, marker=_marker(family), color=f"C{k}", label=_label(family))
             if before is not None and before in runs and len(_series(runs, family, before)):
                 _errorbar(ax, _series(runs, family, before), marker=_marker(family), color=f"C{k}", linestyle="--",
                           markerfacecolor="none", label=f"{_label(family)}: initial state")
         ax.set_xlabel(_panel_xlabel(runs, groups[panel]))
-        ax.legend()
+        _share_axis(ax, shares)
     axes[0].set_ylabel(ylabel)
     fig.suptitle(title)
     return fig
@@ -485,16 +498,18 @@ def _coordination_figure(runs: pd.DataFrame) -> Figure | None:
     families = [f for f in _families(runs) if any(len(_series(runs, f, c)) for c, _ in _COORDINATION)]
     if not families:
         return None
-    fig = Figure(figsize=(4.5 * len(families), 4.2))
+    fig = Figure(figsize=(4.5 * len(families), 4.2), layout="constrained")  # the suptitle clear of the panel titles
     axes = fig.subplots(1, len(families), squeeze=False, sharey=True)[0]
     for ax, family in zip(axes, families):
+        shares = []
         for k, (column, name) in enumerate(_COORDINATION):
             stats = _series(runs, family, column)
+            shares += stats["share"].tolist()
             if len(stats):
                 _errorbar(ax, stats, marker="osDv"[k], color=f"C{k}", label=name)
         ax.set_title(_label(family))
         ax.set_xlabel(_panel_xlabel(runs, [family]))
-        ax.legend()
+        _share_axis(ax, shares)
     axes[0].set_ylabel("contacts per grain (bulk)")
     fig.suptitle("Coordination: all (N), simple (Ns), double (Nd), triple (Nt) contacts")
     return fig
@@ -561,7 +576,7 @@ def _share_colour(share: float):
 
 
 def _family_axes(families: list[str], height: float, sharey: bool) -> tuple[Figure, np.ndarray]:
-    fig = Figure(figsize=(5 * len(families), height))
+    fig = Figure(figsize=(5 * len(families), height), layout="constrained")  # the suptitle clear of the panel titles
     axes = fig.subplots(1, len(families), squeeze=False, sharey=sharey)[0]
     for ax, family in zip(axes, families):
         ax.set_title(_label(family))
@@ -672,6 +687,11 @@ def _campaign_skip_reason(stem: str, runs: pd.DataFrame, chosen: pd.DataFrame) -
         return "no mixture has a second population (the figure shows the substituted grains)"
     if stem == "solid_fraction_vs_grading":
         return "no run of a Fuller or lognormal grading has a bulk solid fraction"
+    if stem in ("solid_fraction", "order", "coordination"):
+        valued = runs[runs[columns[stem]].notna().any(axis=1)]
+        if valued["share"].notna().sum() == 0:
+            return ("no mixture with a value has a share, the figure's x axis (give each [[mixtures]] entry of "
+                    "the campaign file its `share`, and a `family` per curve)")
     return "nothing to draw"
 
 
