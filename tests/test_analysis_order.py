@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -89,9 +90,19 @@ def test_no_bulk_region_is_said_so():
     assert order.n_analysed == 0 and len(order.warnings) == 1
 
 
-def test_spheres_only_give_nan_and_warning():
+def test_spheres_only_give_nan_without_a_warning():
+    """A sphere packing has no orientation to measure: nan is its answer, not a warning."""
     packing, _ = fcc_spheres(2, 4)
-    with pytest.warns(AnalysisWarning, match="no non-spherical grain"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AnalysisWarning)
         order = Order(bulk=False).compute(packing)
-    assert math.isnan(order.Q00) and math.isnan(order.Q22)
-    assert order.director_axis == ""
+        in_bulk = Order().compute(packing)  # too thin for a bulk region too: still nothing to say
+    assert math.isnan(order.Q00) and math.isnan(order.Q22) and math.isnan(in_bulk.Q00)
+    assert order.director_axis == "" and order.warnings == [] and in_bulk.warnings == []
+
+
+def test_non_spherical_grains_outside_the_analysed_region_are_said_so():
+    packing, _ = cubic_cubes(3, 12)
+    with pytest.warns(AnalysisWarning, match="no non-spherical grain in the analysed region"):
+        order = Order(z_range=(100.0, 101.0)).compute(packing)
+    assert order.n_analysed == 0 and math.isnan(order.Q00)

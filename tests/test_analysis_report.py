@@ -92,6 +92,18 @@ def test_two_populations_in_the_json(tmp_path, rng):
     assert sum(p["volume_fraction"] for p in data["populations"]) == pytest.approx(1.0)
 
 
+def test_a_sphere_packing_at_rest_has_no_analysis_warning():
+    """Spheres have no orientation: their nan order parameters are no warning (a campaign counts
+    the warnings of each run, and a sphere run would count one for nothing)."""
+    from packing_builders import fcc_spheres
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", AnalysisWarning)
+        result = analyze_packing(fcc_spheres(3, 6)[0])
+    assert result["warnings"] == [] and result["bulk"]["valid"]
+    assert math.isnan(result["order"]["Q00"]) and result["order"]["n_analysed"] == 0
+
+
 @pytest.mark.parametrize(
     "packing",
     [

@@ -23,7 +23,8 @@ Finite-size baseline: for ``n`` uniformly random orientations both figures are p
 0.019 and 0.007 for n = 3000); :func:`isotropic_baseline` gives their mean and standard deviation for
 the actual number of grains, so that values of that size are read as "no order".
 
-Spheres carry no orientation: they are left out; with no non-spherical grain the figures are nan.
+Spheres carry no orientation: they are left out; with no non-spherical grain the figures are nan,
+without a warning (a warning says that non-spherical grains were left out of the analysed region).
 """
 
 from __future__ import annotations
@@ -115,6 +116,7 @@ class Order(Compute):
         mask = ~state.shapes.is_sphere[state.kind]
         if self.population is not None:
             mask &= state.population == self.population
+        oriented = bool(mask.any())  # spheres only: no orientation, the figures nan by nature (no warning)
         if self.bulk:
             region = analysed_region(packing, self.z_range)
             valid = region[2]
@@ -124,9 +126,9 @@ class Order(Compute):
         self._director = np.full(3, math.nan)
         self._axis = -1
         if self._n == 0:
-            if self.bulk and not valid:
+            if oriented and self.bulk and not valid:
                 self._warn("no bulk region: order parameters are nan")
-            else:
+            elif oriented:
                 self._warn("no non-spherical grain in the analysed region: order parameters are nan")
         else:
             self._q00, self._q22, self._director, self._axis = order_parameters(quat_to_matrix(state.quaternion[mask]))
