@@ -385,6 +385,18 @@ def test_resume_of_a_finished_run_leaves_it(finished, capsys):
     assert _snapshot(out) == before
 
 
+def test_resume_of_a_finished_run_of_other_settings_names_them(finished, tmp_path, capsys):
+    config, out, _ = finished
+    other = tmp_path / "longer.toml"
+    other.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 2.0"))
+    before = _snapshot(out)
+    code, _, err = run_main(["run", str(other), "--out", str(out), "--resume"], capsys)
+    line = _one_error_line(err)
+    assert code == 2 and "holds a finished run of another config" in line
+    assert f"equilibrium.max_time = 1.0 in {out / 'config.toml'}, 2.0 in {other}" in line
+    assert _snapshot(out) == before
+
+
 def test_resume_and_overwrite_exclude_each_other(finished, capsys):
     config, out, _ = finished
     code, _, err = run_main(["run", str(config), "--out", str(out), "--resume", "--overwrite"], capsys)

@@ -260,15 +260,26 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
     assert len(changes) > old_rows + 1 and not any(math.isnan(v) for v in changes[old_rows + 1:])
 
 
-def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch):
+def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch, capsys):
+    """The refusal names each setting that differs, its value in the checkpoint and in the file
+    given, and the file to resume with."""
     config = sphere_config(n=20, max_time=1.0)
     killed_run(config, tmp_path, monkeypatch, at_solve=150)
-    other = _write(tmp_path.parent / f"{tmp_path.name}-other.toml", sphere_config(n=20, max_time=1.0, seed=9))
+    other = _write(tmp_path.parent / f"{tmp_path.name}-other.toml", sphere_config(n=20, max_time=1.5, seed=9))
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     with pytest.raises(SystemExit) as info:
         main(["run", str(other), "--out", str(tmp_path), "--resume"])
     assert info.value.code == 2
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before  # nothing touched
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    assert f"seed = 3 in the checkpoint (and {tmp_path / 'config.toml'}), 9 in {other}" in err
+    assert f"equilibrium.max_time = 1.0 in the checkpoint (and {tmp_path / 'config.toml'}), 1.5 in {other}" in err
+    assert f"resume with {tmp_path / 'config.toml'}" in err
+    # the same file with --seed: that is where the seed came from
+    with pytest.raises(SystemExit):
+        main(["run", str(other), "--out", str(tmp_path), "--resume", "--seed", "4"])
+    assert f", 4 in {other} with --seed 4" in capsys.readouterr().err
 
 
 def _write(path, config):

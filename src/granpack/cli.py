@@ -374,12 +374,12 @@ def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
 
 
 def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False,
-                    layout: tuple[str, ...] = ()) -> dict:
+                    layout: tuple[str, ...] = (), source: str | None = None) -> dict:
     from granpack.mixture import Mixture
     from granpack.simulation import run_packing
 
     try:  # the warnings of `check`, before hours of work
-        summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True,
+        summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True, source=source,
                               warnings=[*layout, *_warnings_of(config, Mixture.from_config(config))])
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
@@ -443,7 +443,8 @@ def run(
     _protect_input(config, out, cfg.to_toml())
     again = f"granpack run {config} --out {out}" + (f" --seed {seed}" if seed is not None else "")
     summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output,
-                              layout=tuple(_layout_warnings(_toml_of(config))))
+                              layout=tuple(_layout_warnings(_toml_of(config))),
+                              source=f"{config}" + (f" with --seed {seed}" if seed is not None else ""))
     if json_output:
         _print_json({"out": str(out), "files": {name: str(out / name) for name in ("config.toml", "final.gsd", "summary.json")},
                      "summary": summary})

@@ -54,6 +54,7 @@ from granpack.io.run_folder import (
     TIMELINE_FILE,
     TRAJECTORY_FILE,
     claim_folder,
+    config_differences,
 )
 from granpack.mixture import Mixture
 from granpack.nscd import kinetic_energy
@@ -116,16 +117,29 @@ def _same_config(saved_text: str | None, config: RunConfig) -> bool:
         return False
 
 
-def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture) -> tuple[ParticleState, ContactSet, RunRecord] | None:
-    """State, warm contacts and record of the checkpoint in ``out_dir``, or None if there is none."""
+def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture,
+                 source: str | None = None) -> tuple[ParticleState, ContactSet, RunRecord] | None:
+    """State, warm contacts and record of the checkpoint in ``out_dir``, or None if there is none;
+    a checkpoint of other settings is refused, naming them (``source``: where ``config`` came from)."""
     path = out_dir / CHECKPOINT_FILE
     if not path.is_file():
         return None
     saved = read_packing(path)
     meta = saved.metadata
     if not _same_config(meta.get("config"), config):
-        raise InputError(f"{path}: checkpoint of another config than {out_dir / CONFIG_FILE}; resume with that config, "
-                         "or replace the run with --overwrite")
+        import tomllib
+
+        from granpack.config import load_config_dict
+
+        saved_text = meta.get("config") or ""
+        try:  # an older layout of the same settings, written as today's
+            saved_text = load_config_dict(tomllib.loads(saved_text)).to_toml()
+        except (InputError, tomllib.TOMLDecodeError):
+            pass
+        differences = config_differences(saved_text, config.to_toml(), f"the checkpoint (and {out_dir / CONFIG_FILE})",
+                                         source or "the config given")
+        raise InputError(f"{path}: made with other settings than the config given: {differences}; resume with "
+                         f"{out_dir / CONFIG_FILE} (or those settings), or replace the run with --overwrite")
     s = saved.state
     state = ParticleState(box=Box.square(config.lateral_size), shapes=mixture.particle_shape_table(), kind=s.kind,
                           population=s.population, position=s.position, quaternion=s.quaternion,
@@ -166,7 +180,7 @@ class _Checkpoints:
 
 
 def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool = False, overwrite: bool = False,
-                progress: bool | str = True, warnings: Sequence[str] = ()) -> dict:
+                progress: bool | str = True, warnings: Sequence[str] = (), source: str | None = None) -> dict:
     """Pour and settle one packing; write its files; return its summary.
 
     No work is lost without a word: a folder that holds a run (any of :data:`RUN_FILES`) is
@@ -189,6 +203,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             (resuming, overwriting) go to stderr unless ``False`` or ``"log"``.
         warnings: lines written as ``warning: ...`` notes once the folder is accepted, before a
             new run pours (what ``granpack check`` warns of; none on a resume).
+        source: where ``config`` came from (a file name), named when a resume finds a run of other
+            settings.
 
     Returns:
         The summary written to ``summary.json``: ``status`` (``"equilibrium"`` or
@@ -212,11 +228,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write = Lines(out_dir / PROGRESS_FILE if mode == "log" else None)
     note = Notes(mode, write)
     config_text = config.to_toml()
-    if claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note):
+    if claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note, source=source):
         return read_json(out_dir / SUMMARY_FILE)
     wall_start = time.perf_counter()
     mixture = Mixture.from_config(config)
-    resumed = _resume_from(out_dir, config, mixture) if resume else None  # refused before anything is written
+    resumed = _resume_from(out_dir, config, mixture, source) if resume else None  # refused before anything is written
     write_text_atomic(out_dir / CONFIG_FILE, config_text)
     for stale in (SUMMARY_FILE, FINAL_FILE):
         (out_dir / stale).unlink(missing_ok=True)

@@ -16,7 +16,7 @@ from granpack.io.gsd import read_packing
 
 __all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE", "TIMELINE_FILE",
            "PROGRESS_FILE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
-           "clear_run", "claim_folder"]
+           "config_differences", "clear_run", "claim_folder"]
 
 CONFIG_FILE = "config.toml"
 CHECKPOINT_FILE = "checkpoint.gsd"
@@ -56,6 +56,49 @@ def is_resolved_config(path: Path, config_text: str) -> bool:
         return False
 
 
+def _flat_settings(text: str) -> dict[str, object]:
+    """``{"equilibrium.max_time": 80.0, "populations[0].size": 1.0, ...}`` of a TOML text (empty
+    if it does not parse)."""
+    import tomllib
+
+    try:
+        data = tomllib.loads(text or "")
+    except tomllib.TOMLDecodeError:
+        return {}
+    flat: dict[str, object] = {}
+
+    def walk(key: str, value) -> None:
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(f"{key}.{k}" if key else k, v)
+        elif isinstance(value, list) and value and all(isinstance(v, dict) for v in value):
+            for i, v in enumerate(value):
+                walk(f"{key}[{i}]", v)
+        else:
+            flat[key] = value
+
+    walk("", data)
+    return flat
+
+
+def config_differences(run_text: str, given_text: str, run_name: str, given_name: str, limit: int = 3) -> str:
+    """The settings in which two resolved configs differ, for a message:
+    ``equilibrium.max_time = 80.0 in RUN_NAME, 100.0 in GIVEN_NAME`` (at most ``limit`` of them,
+    then how many more)."""
+    import json
+
+    def shown(value) -> str:
+        return "absent" if value is None else json.dumps(value)
+
+    run, given = _flat_settings(run_text), _flat_settings(given_text)
+    keys = [k for k in dict.fromkeys([*run, *given]) if run.get(k) != given.get(k)]
+    if not keys:
+        return f"the settings of {run_name} and {given_name} are written otherwise"
+    parts = [f"{k} = {shown(run.get(k))} in {run_name}, {shown(given.get(k))} in {given_name}" for k in keys[:limit]]
+    more = f" (and {len(keys) - limit} more setting(s))" if len(keys) > limit else ""
+    return "; ".join(parts) + more
+
+
 def checkpoint_when(path: Path) -> str:
     """`` at t = ... (step ...)`` of a checkpoint, or nothing if it cannot be read."""
     try:
@@ -87,9 +130,11 @@ def clear_run(out_dir: Path) -> list[str]:
     return removed
 
 
-def claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bool, note: Callable[[str], None]) -> bool:
+def claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bool, note: Callable[[str], None],
+                 source: str | None = None) -> bool:
     """Check ``out_dir`` for a run of the resolved config ``config_text`` and create it; clear it
-    with ``overwrite``; ``note`` takes the one-line notes (resuming, overwriting).
+    with ``overwrite``; ``note`` takes the one-line notes (resuming, overwriting); ``source`` names
+    where the config came from in messages (a file name).
 
     Returns:
         True if ``resume`` finds a finished run of this config (returned as it is).
@@ -119,7 +164,9 @@ def claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bo
             if config_path.is_file() and config_path.read_text(encoding="utf-8") == config_text:
                 note(f"{out_dir} holds a finished run of this config: nothing to resume, its summary stands")
                 return True
-            raise InputError(f"{out_dir}: holds a finished run of another config ({config_path}); nothing to "
+            differences = config_differences(config_path.read_text(encoding="utf-8") if config_path.is_file() else "",
+                                             config_text, str(config_path), source or "the config given")
+            raise InputError(f"{out_dir}: holds a finished run of another config ({differences}); nothing to "
                              f"--resume: {replace_hint}, or choose another --out folder")
         if checkpoint.is_file():
             return False
