@@ -241,6 +241,21 @@ def test_help_shows_flags_without_a_value_and_wraps_each_paragraph_as_one_text(c
             assert 2 + len(line) + 1 + len(following.split()[0]) > width - 2, (line, following)
 
 
+@pytest.mark.parametrize("command, example, kind, other", [
+    ("run", "study-small.toml", "a campaign file", "granpack campaign"),
+    ("campaign", "demo.toml", "a run config", "granpack run"),
+])
+def test_a_file_of_the_other_command_is_named_with_its_command(command, example, kind, other, tmp_path, capsys):
+    """A campaign file given to `run` (or a run config to `campaign`) says what it is and which
+    command takes it, instead of the key the other format misses."""
+    path = EXAMPLES / example
+    code, out, err = run_main([command, str(path), "--out", str(tmp_path / "o")], capsys)
+    line = _one_error_line(err)
+    assert code == 2 and out == ""
+    assert line.startswith(f"error: {path}: {kind}") and f"{other} {path} --out DIR" in line, line
+    assert not (tmp_path / "o").exists()
+
+
 def test_usage_errors_are_caught_as_the_installed_typer_raises_them():
     """The handler catches the exception classes of the click that typer really uses (typer >= 0.20
     ships its own copy: catching the click package's classes never matched)."""

@@ -223,6 +223,18 @@ def _is_campaign_file(path: Path) -> bool:
         return False
 
 
+def _is_run_config(path: Path) -> bool:
+    """True when ``path`` reads as TOML with a top-level ``populations`` key and no ``mixtures``
+    (a run config)."""
+    import tomllib
+
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return False
+    return "populations" in data and "mixtures" not in data
+
+
 def _check_campaign(path: Path, json_output: bool) -> None:
     """`granpack check` on a campaign spec: every run config validated, one row per mixture."""
     from rich.table import Table
@@ -437,6 +449,9 @@ def run(
     """
     from granpack.config import load_config
 
+    if _is_campaign_file(config):
+        raise InputError(f"{config}: a campaign file ([[mixtures]]), not a run config: run it with "
+                         f"granpack campaign {config} --out DIR")
     cfg = load_config(config)
     if seed is not None:
         cfg = cfg.with_seed(seed)
@@ -500,6 +515,9 @@ def campaign(
     """
     from granpack.campaign import load_campaign, run_campaign
 
+    if _is_run_config(spec):
+        raise InputError(f"{spec}: a run config ([[populations]]), not a campaign file: run it with "
+                         f"granpack run {spec} --out DIR")
     loaded = load_campaign(spec)
     try:
         report = run_campaign(loaded, out, scheduler=scheduler, workers=workers, mixtures=mixture or None,
