@@ -693,7 +693,7 @@ def test_analyze_warnings_are_clean_lines_with_the_true_cause(finished, tmp_path
 
     code, stdout, err = run_main(["figures", str(out)], capsys)
     assert code == 0 and not (out / "figures" / "pair_correlation.png").exists()
-    assert "skipped pair_correlation: g(r) is empty (no bulk region" in stdout
+    assert "skipped pair_correlation: g(r) is empty (no bulk region" in err and "skipped" not in stdout
 
 
 def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
