@@ -716,6 +716,37 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
     assert line.startswith("settling t = 123.46/200") and len(line) <= 80
 
 
+def test_progress_before_any_contact_force_says_so_instead_of_an_infinite_force():
+    """Until a contact carries force the stress scale P is 0: the line and the bar say there is
+    no net force figure yet, not "inf d^2 P"."""
+    import io
+    import math
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from granpack.progress import SettlingProgress as _SettlingProgress
+
+    report = SimpleNamespace(force_ok=False, torque_ok=False, energy_ok=False, wall_ok=False, max_net_force=math.inf,
+                             kinetic_energy=math.inf, max_net_torque=math.inf, wall_force_over_weight=0.0)
+    written = []
+    with _SettlingProgress("lines", 80.0, 5e-3, written.append) as progress:
+        progress.update(0.25, 1.3, 0, report, 0, 5, 0.0)
+    assert len(written) == 1 and "inf" not in written[0]
+    assert "largest net force n/a (no contact carries force yet)" in written[0]
+    progress = _SettlingProgress("bar", 80.0, 5e-3, written.append)
+    with progress:
+        progress._bar.stop()
+        progress.update(0.25, 1.3, 0, report, 0, 5, 0.0)
+        screen = io.StringIO()
+        Console(file=screen, width=200).print(progress._bar.get_renderable())
+    assert "|F| n/a" in screen.getvalue()
+    report.max_net_force = 3.68e3
+    with _SettlingProgress("lines", 80.0, 5e-3, written.append) as progress:
+        progress.update(0.5, 1.3, 2, report, 0, 5, 0.0)
+    assert "largest net force 3.68e+03 d^2 P" in written[-1]
+
+
 def test_progress_lines_every_interval(tmp_path, capsys, monkeypatch):
     import granpack.progress as progress
     import granpack.simulation as simulation

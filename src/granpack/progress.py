@@ -6,6 +6,7 @@ these decide where the messages go (stderr, a bar, or the run's ``progress.log``
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from pathlib import Path
@@ -61,6 +62,15 @@ class Notes:
 PROGRESS_LINE_SECONDS = 30.0
 
 
+def net_force(report: EquilibriumReport, fmt: str = ".3g", unit: str = " d^2 P") -> str:
+    """The largest net force of ``report`` in d^2 P, or why there is none yet: until a contact
+    carries force the stress scale P is 0 and the normalised force infinite."""
+    value = report.max_net_force
+    if math.isfinite(value):
+        return f"{value:{fmt}}{unit}"
+    return "n/a (no contact carries force yet)"
+
+
 def criteria_met(report: EquilibriumReport) -> str:
     met = [name for name, ok in (("force", report.force_ok), ("torque", report.torque_ok),
                                  ("energy", report.energy_ok), ("wall", report.wall_ok)) if ok]
@@ -112,7 +122,7 @@ class SettlingProgress:
         if self.mode == "bar" and self._bar is not None:
             flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
                                                                   ("E", report.energy_ok), ("W", report.wall_ok)))
-            info = (f"[{flags}] {passes}/{window}  |F| {report.max_net_force:.1e}  E {report.kinetic_energy:.1e}  "
+            info = (f"[{flags}] {passes}/{window}  |F| {net_force(report, '.1e', '')}  E {report.kinetic_energy:.1e}  "
                     f"Ek {ek:.2e}  contacts {n_contacts}  |T| {report.max_net_torque:.1e}  "
                     f"W {report.wall_force_over_weight:.4f}  overlap {overlap:.1e}")
             self._bar.update(self._task, completed=min(t, self.max_time), info=info)
@@ -153,7 +163,7 @@ class SettlingProgress:
         self._last = (now, t)
         when = "" if t_check == t else f" (at the last check, t = {t_check:.2f})"
         self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
-                   f"kinetic energy {ek:.3g}, largest net force {report.max_net_force:.3g} d^2 P, "
+                   f"kinetic energy {ek:.3g}, largest net force {net_force(report)}, "
                    f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
                    f"criteria met: {criteria_met(report)} ({passes}/{window} checks){when}")
 
