@@ -5,7 +5,9 @@
 fitted by bounded non-linear least squares (``scipy.optimize.curve_fit``; ``N0, N1 >= 0``,
 ``Qc > 0``; start ``N0`` = N at the smallest Q, ``N1`` = max N, ``Qc = 0.2``). Standard errors are
 the square roots of the covariance diagonal; ``R^2 = 1 - SS_res / SS_tot``; an optional bootstrap
-over the packings (resampling points with replacement) gives a second spread estimate.
+over the packings (resampling points with replacement) gives a second spread estimate: the
+standard deviation of the resampled fits and, less swayed by the few resamples of a small set that
+miss the points pinning a parameter (and fit it far off), the central 68 % of them.
 """
 
 from __future__ import annotations
@@ -69,6 +71,7 @@ class ExponentialFit(Compute):
         self._params = np.full(3, math.nan)
         self._stderr = np.full(3, math.nan)
         self._boot = np.full(3, math.nan)
+        self._boot_range = np.full((2, 3), math.nan)
         self._r2 = self._rms = math.nan
         if len(q) < 3:
             self._warn(f"an exponential fit needs at least 3 packings, got {len(q)}: parameters are nan")
@@ -97,6 +100,7 @@ class ExponentialFit(Compute):
                     continue
             if len(samples) > 1:
                 self._boot = np.std(samples, axis=0, ddof=1)
+                self._boot_range = np.percentile(samples, [15.87, 84.13], axis=0)
         return self._done()
 
     @result
@@ -123,6 +127,15 @@ class ExponentialFit(Compute):
     def bootstrap_std(self) -> dict:
         """Bootstrap standard deviations ``{N0, N1, Qc}`` (nan without bootstrap)."""
         return dict(zip(("N0", "N1", "Qc"), map(float, self._boot)))
+
+    @result
+    def bootstrap_interval(self) -> dict:
+        """The central 68 % of the bootstrap fits, ``{N0: (low, high), N1: ..., Qc: ...}`` (the
+        16th and 84th percentiles: plus or minus one standard deviation for a normal spread; nan
+        without bootstrap). On a few packings, a resample that misses the points pinning a
+        parameter fits it far off: the standard deviation follows those, this range does not."""
+        return {name: (float(self._boot_range[0, k]), float(self._boot_range[1, k]))
+                for k, name in enumerate(("N0", "N1", "Qc"))}
 
     @result
     def r_squared(self) -> float:
