@@ -102,7 +102,7 @@ def test_message_names_file_and_field_path():
         (pinacoids(color="red"), "color", "unknown key"),
         (pinacoids(time_stepping={"timestep": 1e-3}), "time_stepping.timestep", "allowed: time_step"),
         (pinacoids(solver={"timestep": 1e-3}), "solver.timestep", "allowed: friction"),
-        (with_population(0, shape="cube"), "populations[0].shape", "'sphere', 'pinacoid' or 'polyhedron'"),
+        (with_population(0, shape="cube"), "populations[0].shape", "'sphere', 'pinacoid', 'polyhedron' or 'mesh'"),
         (with_population(1, size=0), "populations[1].size", "> 0"),
         (with_population(0, aspect=[0.5, 1.0]), "populations[0].aspect", ">= 1"),
         (with_population(0, aspect=[1.0, 0.9]), "populations[0].aspect", ">= 1"),
@@ -226,7 +226,8 @@ def test_to_toml_writes_every_default():
     cfg = load_config_dict({"populations": [{"shape": "pinacoid", "size": 1, "volume_fraction": 1}]})
     parsed = tomllib.loads(cfg.to_toml())
     assert parsed["populations"] == [
-        {"name": "pinacoid-1-1x1", "shape": "pinacoid", "size": 1.0, "volume_fraction": 1.0, "aspect": [1.0, 1.0]}]
+        {"name": "pinacoid-1-1x1", "shape": "pinacoid", "size": 1.0, "size_definition": "circumscribed",
+         "volume_fraction": 1.0, "aspect": [1.0, 1.0]}]
     for table in SETTING_TABLES:
         model = type(getattr(cfg, table))
         expected = set(model.model_fields) - ({"alert_distance"} if table == "time_stepping" else set())

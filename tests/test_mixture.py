@@ -124,7 +124,7 @@ def test_table_rows():
     rows = mixture.table()
     assert [r["population"] for r in rows] == mixture.names
     assert set(rows[0]) == {"population", "shape", "size", "aspect", "count", "requested_share", "achieved_share",
-                            "particle_volume"}
+                            "particle_volume", "size_definition", "shapes"}
     assert rows[0]["aspect"] == [2.0, 1.0] and rows[1]["aspect"] is None
     assert [r["shape"] for r in rows] == ["pinacoid", "sphere", "polyhedron"]
     assert [r["count"] for r in rows] == mixture.counts.tolist()

@@ -122,12 +122,40 @@ def _grading_warnings(cfg, mixture) -> list[str]:
             continue
         deviation = mixture.largest_deviation(k)
         if deviation > GRADING_DEVIATION:
-            coarse = int((mixture.sizes[k] > population.largest_size / 2).sum())
+            coarse = int((mixture.sizes[k] > population.grading_curve.d_max / 2).sum())
             needed = int(math.ceil(cfg.n_particles * deviation / GRADING_DEVIATION / 100.0)) * 100
             out.append(f"{population.name}: the {mixture.counts[k]} grains follow the requested sieve curve to within "
                        f"{100 * deviation:.1f} % (largest gap; {coarse} grains above half the largest size carry the "
                        f"coarse fractions): n_particles about {needed} brings it within {100 * GRADING_DEVIATION:g} %")
     return out
+
+
+def _shape_table(mixture):
+    """Each population's shapes (:meth:`granpack.mixture.Mixture.shape_rows`) as a rich table: sizes in
+    every definition, volume, aspect ratios, vertices, and for shapes from files the convexity and
+    the deviations of the reduction."""
+    from rich.table import Table
+    from rich.text import Text
+
+    rows = mixture.shape_rows()
+    meshes = any(r.get("file") for r in rows)
+    table = Table(title=Text("shapes (a graded population's at size 1)"))
+    headings = ["population", "shape", "count", "circumscribed (d)", "sieve (d)", "equiv. volume (d)",
+                "volume (d^3)", "L/G, G/E", "vertices"]
+    headings += ["convexity", "hull vertices", "reduction: volume, moments, L/G, G/E (%)"] if meshes else []
+    for heading in headings:
+        table.add_column(heading, justify="left" if heading in ("population", "shape") else "right")
+    for r in rows:
+        cells = [r["population"], r["shape"], str(r["count"]), *(f"{v:.6g}" for v in r["sizes"].values()),
+                 f"{r['volume']:.6g}", "{:.4g}, {:.4g}".format(*r["aspect"]), str(r["vertices"])]
+        if meshes:
+            dev = r.get("deviations")
+            change = ("" if dev is None else ", ".join(f"{100 * x:+.2f}" for x in
+                                                       [dev["volume"], *dev["moments"], *dev["aspect"]]))
+            cells += ([f"{r['convexity']:.4f}", str(r["hull_vertices"]), change or "none needed"] if r.get("file")
+                      else ["", "", ""])
+        table.add_row(*cells)
+    return table
 
 
 def _sieve_table(mixture, k: int):
@@ -302,7 +330,7 @@ def check(
         _print_json({
             "config": str(config), "valid": True, "n_particles": mixture.n_particles,
             "lateral_size": cfg.lateral_size, "seed": cfg.seed, "alert_distance": cfg.resolved_alert_distance,
-            "mixture": mixture.table(), "resolved": cfg.model_dump(mode="json"),
+            "mixture": mixture.table(), "shapes": mixture.shape_rows(), "resolved": cfg.model_dump(mode="json"),
             "sieve_curves": {cfg.populations[k].name: mixture.sieve_curve(k) for k in range(len(cfg.populations))
                              if cfg.populations[k].grading is not None and mixture.counts[k]},
             "warnings": found,
@@ -319,6 +347,7 @@ def check(
                       f"{row['requested_share']:.6f}", f"{row['achieved_share']:.6f}", f"{row['particle_volume']:.6g}")
     console = _console()
     console.print(table)
+    console.print(_shape_table(mixture))
     for k, population in enumerate(cfg.populations):
         if population.grading is not None and mixture.counts[k]:
             console.print(_sieve_table(mixture, k))

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import json
 import math
+from functools import lru_cache
 import re
 import tomllib
 from pathlib import Path
@@ -36,6 +37,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, Vali
 from granpack.errors import InputError
 from granpack.grading import Grading
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Sphere, polyhedron_of_size
+from granpack.shapes.sizes import SIZE_DEFINITIONS
 
 __all__ = [
     "AUTO_ALERT_FRACTION",
@@ -172,14 +174,21 @@ class GradingConfig(_Model):
 class PopulationConfig(_Model):
     """One grain population: a shape at one size and its share of the solid volume."""
 
-    shape: Literal["sphere", "pinacoid", "polyhedron"] = Field(
-        description='Grain shape: "sphere", "pinacoid" or "polyhedron" (then give vertices).'
+    shape: Literal["sphere", "pinacoid", "polyhedron", "mesh"] = Field(
+        description='Grain shape: "sphere", "pinacoid", "polyhedron" (then give vertices) or "mesh" (then give '
+        "files: each grain is the convex hull of a surface read from a file)."
     )
     size: Annotated[Optional[_Number], Field(validate_default=True)] = Field(
         default=None,
         gt=0,
         description="Circumscribed diameter, d: the sphere diameter, sqrt(L^2 + G^2) for a pinacoid; required "
         "unless `grading` gives a distribution of sizes.",
+    )
+    size_definition: Literal["circumscribed", "sieve", "equivalent_volume"] = Field(
+        default="circumscribed",
+        description='What `size` and the grading\'s sizes measure: "circumscribed", the diameter of the smallest '
+        'centred ball holding the grain (granpack\'s d); "sieve", the side of the smallest square aperture the grain '
+        'passes through; "equivalent_volume", the diameter of the ball of the same volume.',
     )
     grading: Annotated[Optional[GradingConfig], Field(validate_default=True)] = Field(
         default=None, description="A distribution of sizes instead of `size` ([populations.grading] table)."
@@ -195,6 +204,26 @@ class PopulationConfig(_Model):
         default=None,
         description="Polyhedron only (required there): [[x, y, z], ...] of a convex body, any scale "
         "(it is scaled to `size`).",
+    )
+    max_vertices: Annotated[Optional[int], Field(validate_default=True)] = Field(
+        default=None, ge=4, le=1000,
+        description="Mesh only: the most vertices a grain keeps; a hull with more is reduced to this many, its "
+        "volume kept exactly, its principal moments and aspect ratios within 5 %; default 24.",
+    )
+    min_convexity: Annotated[Optional[_Number], Field(validate_default=True)] = Field(
+        default=None, gt=0, le=1,
+        description="Mesh only: the least convexity (volume the file's surface encloses / volume of its convex "
+        "hull, which the grain is) accepted; default 0.85.",
+    )
+    files: Annotated[Optional[tuple[str, ...]], Strict(False), Field(validate_default=True)] = Field(
+        default=None, min_length=1,
+        description="Mesh only (required there): mesh files (STL, OBJ, PLY or OFF), one grain shape each, as paths "
+        "or glob patterns relative to the config file; the resolved config lists the files found.",
+    )
+    weights: Annotated[Optional[tuple[_Number, ...]], Strict(False), Field(validate_default=True)] = Field(
+        default=None,
+        description="Mesh only: the relative number of grains of each file's shape, one weight per file in the "
+        "order of `files` (each pattern's matches by name); default: equal numbers.",
     )
     name: Annotated[Optional[str], Field(validate_default=True)] = Field(
         default=None,
@@ -235,6 +264,61 @@ class PopulationConfig(_Model):
             raise ValueError(str(exc)) from None
         return vertices
 
+    @field_validator("max_vertices", "min_convexity")
+    @classmethod
+    def _check_mesh_setting(cls, value, info: ValidationInfo):
+        shape = info.data.get("shape")
+        if shape != "mesh":
+            if value is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'mesh' (this population is a {shape})")
+            return value
+        if value is not None:
+            return value
+        from granpack.shapes.from_mesh import MIN_CONVEXITY
+        from granpack.shapes.reduction import DEFAULT_MAX_VERTICES
+
+        return DEFAULT_MAX_VERTICES if info.field_name == "max_vertices" else MIN_CONVEXITY
+
+    @field_validator("files")
+    @classmethod
+    def _check_files(cls, files: tuple[str, ...] | None, info: ValidationInfo) -> tuple[str, ...] | None:
+        shape = info.data.get("shape")
+        if shape != "mesh":
+            if files is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'mesh' (this population is a {shape})")
+            return files
+        if files is None:
+            raise ValueError("required for shape 'mesh': a list of mesh files or glob patterns (STL, OBJ, PLY, OFF)")
+        if info.data.get("max_vertices") is None or info.data.get("min_convexity") is None:
+            return files  # another field is invalid and is reported instead
+        from granpack.io.mesh_files import MeshFileError, expand_files
+        from granpack.shapes.from_mesh import population_grains
+
+        base = (info.context or {}).get("base_dir") or Path.cwd()
+        try:
+            paths = expand_files(files, Path(base))
+            population_grains(paths, info.data["max_vertices"], info.data["min_convexity"])
+        except MeshFileError as exc:
+            raise ValueError(str(exc)) from None
+        return tuple(str(p) for p in paths)
+
+    @field_validator("weights")
+    @classmethod
+    def _check_weights(cls, weights: tuple[float, ...] | None, info: ValidationInfo) -> tuple[float, ...] | None:
+        shape, files = info.data.get("shape"), info.data.get("files")
+        if shape != "mesh":
+            if weights is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'mesh' (this population is a {shape})")
+            return weights
+        if weights is None or files is None:
+            return weights
+        if len(weights) != len(files):
+            raise ValueError(f"one weight per file: {len(weights)} weights for the {len(files)} files "
+                             f"{', '.join(Path(f).name for f in files[:4])}{', ...' if len(files) > 4 else ''}")
+        if not all(w >= 0 for w in weights) or not sum(weights) > 0:
+            raise ValueError("weights must be >= 0 with a positive sum")
+        return weights
+
     @field_validator("name")
     @classmethod
     def _derive_name(cls, name: str | None, info: ValidationInfo) -> str | None:
@@ -268,13 +352,41 @@ class PopulationConfig(_Model):
 
     @property
     def largest_size(self) -> float:
-        """The largest grain size of the population, d."""
-        return self.size if self.grading is None else self.grading_curve.d_max
+        """The largest circumscribed diameter of the population's grains, d (its `size` or largest
+        graded size when `size_definition` is "circumscribed")."""
+        largest = self.size if self.grading is None else self.grading_curve.d_max
+        if self.size_definition == "circumscribed":
+            return largest
+        return largest * max(s.size for s in self.make_shapes()) / (1.0 if self.grading is not None else self.size)
 
     @property
     def smallest_size(self) -> float:
-        """The smallest grain size of the population, d."""
-        return self.size if self.grading is None else self.grading_curve.d_min
+        """The smallest circumscribed diameter of the population's grains, d."""
+        smallest = self.size if self.grading is None else self.grading_curve.d_min
+        if self.size_definition == "circumscribed":
+            return smallest
+        return smallest * min(s.size for s in self.make_shapes()) / (1.0 if self.grading is not None else self.size)
+
+    @property
+    def shape_weights(self) -> tuple[float, ...]:
+        """The number share of each of :meth:`make_shapes`' shapes among the population's grains (sum 1)."""
+        n = 1 if self.shape != "mesh" else len(self.files)
+        weights = self.weights if self.weights is not None else (1.0,) * n
+        total = math.fsum(weights)
+        return tuple(w / total for w in weights)
+
+    def mesh_grains(self) -> tuple:
+        """The :class:`~granpack.shapes.from_mesh.MeshGrain` of each file, in the file's unit (mesh only)."""
+        from granpack.shapes.from_mesh import population_grains
+
+        if self.shape != "mesh":
+            raise ValueError(f"a {self.shape} population has no mesh files")
+        return population_grains([Path(f) for f in self.files], self.max_vertices, self.min_convexity)
+
+    def make_shapes(self) -> tuple[Shape, ...]:
+        """The population's grain shapes (one, or one per file for a mesh population), each at this
+        population's size in its `size_definition`, or at size 1 for a graded one (body frame, d)."""
+        return _population_shapes(self)
 
     def make_shape(self) -> Shape:
         """The grain shape at this population's size, or at size 1 for a graded one (body frame,
@@ -282,14 +394,38 @@ class PopulationConfig(_Model):
 
         Returns:
             ``Sphere(size)``, ``Pinacoid.from_size(size, *aspect)`` or
-            ``polyhedron_of_size(vertices, size)``.
+            ``polyhedron_of_size(vertices, size)``; a mesh population's first shape.
         """
+        if self.shape == "mesh" or self.size_definition != "circumscribed":
+            return self.make_shapes()[0]
         size = self.size if self.grading is None else 1.0
         if self.shape == "sphere":
             return Sphere(size)
         if self.shape == "pinacoid":
             return Pinacoid.from_size(size, *self.aspect, name=self.name)
         return polyhedron_of_size(self.vertices, size, name=self.name)
+
+
+@lru_cache(maxsize=256)
+def _population_shapes(population: PopulationConfig) -> tuple[Shape, ...]:
+    """:meth:`PopulationConfig.make_shapes` (cached: a sieve size takes a search)."""
+    from granpack.shapes.sizes import size_of
+
+    size = population.size if population.grading is None else 1.0
+    if population.shape == "mesh":
+        bases = [(g.shape, g.sizes[population.size_definition]) for g in population.mesh_grains()]
+    elif population.size_definition == "circumscribed":
+        return (population.make_shape(),)
+    else:
+        base = population.model_copy(update={"size": 1.0, "grading": None,
+                                             "size_definition": "circumscribed"}).make_shape()
+        bases = [(base, size_of(base, population.size_definition))]
+    shapes = []
+    for base, base_size in bases:
+        shape = base.scaled(size / base_size)
+        shape.scale_of = None  # the population's own shape: its graded grains are scaled from it
+        shapes.append(shape)
+    return tuple(shapes)
 
 
 class TimeSteppingConfig(_Model):
@@ -743,29 +879,30 @@ def _regrouped(data: dict, prefix: str) -> dict:
     return data
 
 
-def _validate(data: Any, source: str | None) -> RunConfig:
+def _validate(data: Any, source: str | None, base_dir: Path | None = None) -> RunConfig:
     prefix = f"{source}: " if source else ""
     if not isinstance(data, dict):
         raise InputError(f"{prefix}must be a table of config keys (got {type(data).__name__})")
     try:
-        return RunConfig.model_validate(_regrouped(data, prefix))
+        return RunConfig.model_validate(_regrouped(data, prefix), context={"base_dir": base_dir})
     except ValidationError as exc:
         loc, message = _describe(exc.errors(include_url=False)[0])
         where = f"{_field_path(loc)}: " if loc else ""
         raise InputError(" ".join(f"{prefix}{where}{message}".split())) from None
 
 
-def load_config_dict(data: dict, source: str = "<dict>") -> RunConfig:
+def load_config_dict(data: dict, source: str = "<dict>", base_dir: Path | None = None) -> RunConfig:
     """Validate a config given as a dict (parsed TOML).
 
     Args:
         data: the config keys, as :func:`tomllib.loads` returns them.
         source: what the data came from, first in error messages (a file name, a campaign entry).
+        base_dir: the folder that relative mesh `files` are read from; default the current one.
 
     Raises:
         InputError: one line ``SOURCE: FIELD.PATH: what is wrong``.
     """
-    return _validate(data, source)
+    return _validate(data, source, base_dir)
 
 
 def load_config(path: str | Path) -> RunConfig:
@@ -793,4 +930,4 @@ def load_config(path: str | Path) -> RunConfig:
         raise InputError(f"{path}: not a TOML file (not UTF-8 text)") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(" ".join(f"{path}: not valid TOML: {exc}".split())) from None
-    return _validate(data, str(path))
+    return _validate(data, str(path), path.parent)

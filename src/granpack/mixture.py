@@ -30,6 +30,13 @@ PHI_ONE_SIZE = 0.6
 #: the same for a mix of sizes (measured 0.70-0.74 for mixes of sizes 1 and 1/3)
 PHI_MIXED_SIZES = 0.72
 
+def _mean_volume(shapes, weights) -> float:
+    """Mean volume of a grain of a population whose shapes have number shares ``weights``, d^3."""
+    if len(shapes) == 1:
+        return shapes[0].volume
+    return float(sum(w * s.volume for w, s in zip(weights, shapes)))
+
+
 def _errors(counts: np.ndarray, shares: np.ndarray, volumes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Largest and total share error of each row of ``counts`` ``(C, K)``."""
     solid = counts * volumes
@@ -109,6 +116,15 @@ def volume_share_counts(shares, volumes, n_particles: int) -> np.ndarray:
 #: the random stream that orders each graded population's sizes among its grains (apart from the
 #: run's stream, which draws the population order, the deposit and the orientations)
 _GRADING_STREAM = 0x67726164
+#: the random stream that orders the shapes of a population of several shapes among its grains
+_SHAPE_STREAM = 0x73686170
+
+
+def shape_counts(weights, n: int) -> np.ndarray:
+    """Grains of each shape among ``n``: the largest-remainder rounding of ``n w_s`` (``weights``
+    summing to 1), so equal weights give numbers that differ by at most one."""
+    ideal = n * np.asarray(weights, dtype=np.float64)
+    return _rounded(ideal, n, 0)
 
 
 @dataclass(frozen=True)
@@ -118,27 +134,35 @@ class Mixture:
 
     A graded population's grains have sizes :meth:`granpack.grading.Grading.sizes` of its count,
     in an order drawn from the seed: grain ``m`` of population ``k`` (in particle order) has the
-    size ``sizes[k][m]`` and its own kind in the shape table (:meth:`particle_kinds`).
+    size ``sizes[k][m]`` and its own kind in the shape table (:meth:`particle_kinds`). A population
+    of several shapes (mesh files) gives each shape :func:`shape_counts` of its grains, in an order
+    drawn from the seed: grain ``m`` has the shape ``population_shapes[k][choices[k][m]]``.
 
     Attributes:
         populations: the ``K`` population configs.
-        shapes: ``K`` shapes at their sizes (body frame, d); shape k is population k (a graded
-            population's at size 1).
+        shapes: ``K`` shapes at their sizes (body frame, d); shape k is population k's (its first
+            one when it has several; a graded population's at size 1).
         counts: ``(K,)`` int64 particles per population, summing to N.
         sizes: per population, the ``(counts[k],)`` sizes of its grains (d), None for one size.
+        population_shapes: per population, all its shapes (one, or one per mesh file).
+        choices: per population, the ``(counts[k],)`` int64 shape index of each of its grains,
+            None for a population of one shape.
     """
 
     populations: tuple[PopulationConfig, ...]
     shapes: tuple[Shape, ...]
     counts: np.ndarray
     sizes: tuple[np.ndarray | None, ...]
+    population_shapes: tuple[tuple[Shape, ...], ...] = ()
+    choices: tuple[np.ndarray | None, ...] = ()
 
     @classmethod
     def from_config(cls, config: RunConfig) -> "Mixture":
         """Shapes, counts and graded sizes of ``config.populations`` for ``config.n_particles`` grains."""
-        shapes = tuple(p.make_shape() for p in config.populations)
-        mean_volumes = [s.volume * (p.grading_curve.mean_cube() if p.grading is not None else 1.0)
-                        for p, s in zip(config.populations, shapes)]
+        population_shapes = tuple(p.make_shapes() for p in config.populations)
+        shapes = tuple(s[0] for s in population_shapes)
+        mean_volumes = [_mean_volume(s, p.shape_weights) * (p.grading_curve.mean_cube() if p.grading is not None else 1.0)
+                        for p, s in zip(config.populations, population_shapes)]
         counts = volume_share_counts([p.volume_fraction for p in config.populations], mean_volumes, config.n_particles)
         counts.setflags(write=False)
         sizes = []
@@ -150,7 +174,18 @@ class Mixture:
             graded = p.grading_curve.sizes(int(n))[order]
             graded.setflags(write=False)
             sizes.append(graded)
-        return cls(populations=tuple(config.populations), shapes=shapes, counts=counts, sizes=tuple(sizes))
+        choices = []
+        for k, (p, n) in enumerate(zip(config.populations, counts)):
+            if len(population_shapes[k]) == 1:
+                choices.append(None)
+                continue
+            per_shape = shape_counts(p.shape_weights, int(n))
+            order = np.random.default_rng([config.seed, k, _SHAPE_STREAM]).permutation(int(n))
+            chosen = np.repeat(np.arange(len(per_shape), dtype=np.int64), per_shape)[order]
+            chosen.setflags(write=False)
+            choices.append(chosen)
+        return cls(populations=tuple(config.populations), shapes=shapes, counts=counts, sizes=tuple(sizes),
+                   population_shapes=population_shapes, choices=tuple(choices))
 
     @property
     def n_particles(self) -> int:
@@ -175,8 +210,15 @@ class Mixture:
     @property
     def solid_volumes(self) -> np.ndarray:
         """``(K,)`` solid volume of each population's grains, d^3."""
-        return np.array([s.volume * (n if d is None else float(np.sum(d ** 3)))
-                         for s, n, d in zip(self.shapes, self.counts, self.sizes)])
+        out = []
+        for k, (s, n, d) in enumerate(zip(self.shapes, self.counts, self.sizes)):
+            choice = self.choices[k] if self.choices else None
+            if choice is None:
+                out.append(s.volume * (n if d is None else float(np.sum(d ** 3))))
+                continue
+            volumes = np.array([shape.volume for shape in self.population_shapes[k]])[choice]
+            out.append(float(np.sum(volumes * (1.0 if d is None else d ** 3))))
+        return np.array(out)
 
     @property
     def requested_shares(self) -> np.ndarray:
@@ -227,7 +269,7 @@ class Mixture:
         """One row per population: ``population``, ``shape``, ``size`` (d; for a graded population its
         ``curve`` and ``d_min``, ``d_max`` instead, and the ``largest_deviation`` of its sieve curve),
         ``aspect`` (pinacoids, else None), ``count``, ``requested_share``, ``achieved_share``,
-        ``particle_volume`` (d^3, the mean)."""
+        ``particle_volume`` (d^3, the mean), ``size_definition``, ``shapes`` (how many)."""
         achieved, volumes = self.achieved_shares, self.particle_volumes
         rows = []
         for k, p in enumerate(self.populations):
@@ -240,11 +282,49 @@ class Mixture:
                 "requested_share": p.volume_fraction,
                 "achieved_share": float(achieved[k]),
                 "particle_volume": float(volumes[k]),
+                "size_definition": p.size_definition,
+                "shapes": len(self.population_shapes[k]) if self.population_shapes else 1,
             }
             if p.grading is not None:
                 row.update(curve=p.grading.curve, d_min=p.smallest_size, d_max=p.largest_size,
                            largest_deviation=self.largest_deviation(k) if self.counts[k] else None)
             rows.append(row)
+        return rows
+
+    def shape_rows(self) -> list[dict]:
+        """One row per shape of each population, at the population's size (a graded one's at size 1):
+        ``population``, ``shape`` (its name: a mesh file's stem), ``file`` (mesh only, else None),
+        ``count`` (grains of this shape), ``vertices``, ``volume`` (d^3), ``aspect`` ``[L/G, G/E]``
+        (:func:`granpack.shapes.sizes.aspect_ratios`), ``sizes`` (d, in every size definition),
+        and for a mesh shape ``convexity``, ``hull_vertices`` and ``deviations`` of its reduction
+        (``{"volume", "moments", "aspect"}``, relative, None when the hull needed none)."""
+        from granpack.shapes.sizes import SIZE_DEFINITIONS, aspect_ratios, size_of
+
+        rows = []
+        for k, p in enumerate(self.populations):
+            group = self.population_shapes[k] if self.population_shapes else (self.shapes[k],)
+            choice = self.choices[k] if self.choices else None
+            grains = p.mesh_grains() if p.shape == "mesh" else (None,) * len(group)
+            for s, (shape, grain) in enumerate(zip(group, grains)):
+                count = int(self.counts[k]) if choice is None else int(np.sum(choice == s))
+                scale = 1.0 if grain is None else shape.size / grain.shape.size
+                row = {
+                    "population": p.name,
+                    "shape": getattr(shape, "name", "sphere"),
+                    "file": None if grain is None else str(grain.source),
+                    "count": count,
+                    "vertices": len(getattr(shape, "vertices", ())),
+                    "volume": float(shape.volume),
+                    "aspect": list(aspect_ratios(shape)),
+                    "sizes": {d: (float(grain.sizes[d] * scale) if grain is not None else float(size_of(shape, d)))
+                              for d in SIZE_DEFINITIONS},
+                }
+                if grain is not None:
+                    dev = grain.deviations
+                    row.update(convexity=float(grain.convexity), hull_vertices=int(grain.hull_vertex_count),
+                               deviations=None if dev is None else {"volume": dev.volume, "moments": list(dev.moments),
+                                                                    "aspect": list(dev.aspect)})
+                rows.append(row)
         return rows
 
     def particle_populations(self, rng: np.random.Generator) -> np.ndarray:
@@ -259,7 +339,13 @@ class Mixture:
         """``(N,)`` int64 kind of each particle in :meth:`particle_shape_table`: its population's, or
         for the ``m``-th grain of a graded population (in particle order) its own."""
         kind = np.array(population, dtype=np.int64)
-        offset = len(self.populations)
+        first = self._first_kinds()
+        for k, choice in enumerate(self.choices):
+            if choice is not None and self.sizes[k] is None:
+                kind[population == k] = first[k] + choice
+            elif self.sizes[k] is None:
+                kind[population == k] = first[k]
+        offset = int(first[-1])
         for k, d in enumerate(self.sizes):
             if d is None:
                 continue
@@ -268,8 +354,23 @@ class Mixture:
             offset += len(d)
         return kind
 
+    def _first_kinds(self) -> np.ndarray:
+        """``(K + 1,)`` the first kind of each population's shapes in :meth:`particle_shape_table`
+        (then the first graded grain's kind)."""
+        per = [len(s) for s in self.population_shapes] if self.population_shapes else [1] * len(self.populations)
+        return np.concatenate([[0], np.cumsum(per)]).astype(np.int64)
+
+    def _grain_shape(self, k: int, m: int) -> Shape:
+        """The shape of grain ``m`` of population ``k`` (in particle order), at the population's size."""
+        choice = self.choices[k] if self.choices else None
+        return self.shapes[k] if choice is None else self.population_shapes[k][int(choice[m])]
+
     def particle_shape_table(self) -> ShapeTable:
-        """Kernel geometry: kind k is population k, then one kind per graded grain (in the order of
-        :attr:`sizes`)."""
-        graded = [self.shapes[k].scaled(float(size)) for k, d in enumerate(self.sizes) if d is not None for size in d]
-        return ShapeTable.from_shapes(self.shapes + tuple(graded))
+        """Kernel geometry: the shapes of population 0 (one kind each, a population of one shape one
+        kind), then those of population 1, ..., then one kind per graded grain (in the order of
+        :attr:`sizes`), its shape scaled to its size."""
+        graded = [self._grain_shape(k, m).scaled(float(size)) for k, d in enumerate(self.sizes) if d is not None
+                  for m, size in enumerate(d)]
+        shapes = (tuple(s for group in self.population_shapes for s in group) if self.population_shapes
+                  else self.shapes)
+        return ShapeTable.from_shapes(shapes + tuple(graded))
