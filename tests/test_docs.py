@@ -70,6 +70,17 @@ def test_cli_reference_has_every_command_and_option(reference):
                 assert f"`{param.opts[0]}`" in page, (name, param.opts[0])
 
 
+def test_committed_reference_pages_are_current(reference):
+    """docs/reference/config.md, campaign.md and cli.md are committed so that they read in the
+    repository (links from the other pages reach them there): they must be what the code gives
+    now. After changing a setting, a campaign key or a command: ``python docs/hooks/reference.py``."""
+    docs = HOOKS.parent
+    for uri, make in reference.PAGES.items():
+        committed = docs / uri
+        assert committed.is_file(), f"{uri} is missing: run `python docs/hooks/reference.py`"
+        assert committed.read_text(encoding="utf-8") == make(), f"{uri} is stale: run `python docs/hooks/reference.py`"
+
+
 def test_rst_roles_and_math_become_markdown():
     sys.path.insert(0, str(HOOKS))
     try:
