@@ -275,8 +275,8 @@ EXAMPLE_FILES = [p for p in sorted(EXAMPLES.glob("*.toml")) if "mixtures" not in
 @pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
 def test_examples_load(path):
     cfg = load_config(path)
-    # the study's 3000 grains; the demo's 300; the graded aggregate's 5000 (its coarse fractions within 0.3 %)
-    assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000}.get(path.name, 3000)
+    # the study's 3000 grains; the demo's 300; the README's 1000 spheres; the graded aggregate's 5000 (its coarse fractions within 0.3 %)
+    assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000, "spheres-1000.toml": 1000}.get(path.name, 3000)
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
@@ -299,7 +299,7 @@ def test_example_lateral_sizes_and_families():
     # cells narrowed for a bulk region (tests/test_examples.py): the study's 8 d where it leaves one
     assert lateral == {"demo.toml": 3.0, "aggregate-4-22.toml": 2.5, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
                        "pinacoids-flat-elongated.toml": 4.0, "pinacoids-flat.toml": 5.5,
-                       "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0}
+                       "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0, "spheres-1000.toml": 8.0}
     aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
                ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
                 "pinacoids-flat-elongated.toml")}
@@ -336,6 +336,7 @@ def test_the_flat_solver_table_of_0_1_0_is_read_as_the_grouped_tables():
 
 def test_every_setting_has_one_declaration_that_the_step_defaults_follow():
     from granpack.nscd import StepParameters
+    from granpack.settling import step_parameters
 
     defaults, config = StepParameters(), load_config_dict(pinacoids())
     assert (defaults.time_step, defaults.theta, defaults.tolerance, defaults.max_iterations) == (
@@ -344,6 +345,7 @@ def test_every_setting_has_one_declaration_that_the_step_defaults_follow():
         config.overlap.projection_slop, config.overlap.recovery_slop, config.overlap.recovery_rate,
         config.overlap.recovery_speed)
     assert defaults.parallel_points == config.threads.parallel_points and defaults.alert == config.resolved_alert_distance
+    assert defaults == step_parameters(config)  # every field: the step's plain defaults are the config's
     # each table's fields, units and descriptions are written once into the resolved TOML
     text = config.to_toml()
     for table in SETTING_TABLES:
