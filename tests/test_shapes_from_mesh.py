@@ -227,3 +227,31 @@ volume_fraction = 1.0
     for key in ("position", "orientation", "velocity"):
         assert np.array_equal(fa.log[f"granpack/{key}"], fb.log[f"granpack/{key}"]), key
     assert not math.isclose(float(np.abs(fa.log["granpack/velocity"]).max()), 0.0)
+
+
+def run_main(argv, capsys) -> tuple[int, str, str]:
+    from granpack.cli import main
+
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    out, err = capsys.readouterr()
+    return int(info.value.code or 0), out, err
+
+
+def test_check_prints_each_shape_and_a_bad_file_stops_check_and_run(three_grains, capsys):
+    config = write_config(three_grains, ["grains/*.stl"], population_extra='size_definition = "sieve"')
+    code, out, _ = run_main(["check", "--json", str(config)], capsys)
+    assert code == 0
+    rows = __import__("json").loads(out)["shapes"]
+    assert [r["shape"] for r in rows] == ["g0", "g1", "g2"]
+    for row in rows:
+        assert row["sizes"]["sieve"] == pytest.approx(1.0, rel=1e-12)
+        assert row["vertices"] <= 24 and row["hull_vertices"] > 24 and 0.85 < row["convexity"] <= 1.0
+        assert abs(row["deviations"]["volume"]) < 1e-12
+    code, out, _ = run_main(["check", str(config)], capsys)
+    assert code == 0 and "convexity" in out and "g2" in out
+    (three_grains / "grains" / "g1.stl").write_bytes(b"solid nothing\nendsolid nothing\n")
+    code, out, err = run_main(["check", str(config)], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "g1.stl: holds no triangles" in err
+    code, out, err = run_main(["run", str(config), "--out", str(three_grains / "out")], capsys)
+    assert code == 2 and "g1.stl" in err and not (three_grains / "out").exists()

@@ -386,7 +386,10 @@ class PopulationConfig(_Model):
     def make_shapes(self) -> tuple[Shape, ...]:
         """The population's grain shapes (one, or one per file for a mesh population), each at this
         population's size in its `size_definition`, or at size 1 for a graded one (body frame, d)."""
-        return _population_shapes(self)
+        stamps = ()
+        if self.shape == "mesh":
+            stamps = tuple((st.st_size, st.st_mtime_ns) for st in (Path(f).stat() for f in self.files))
+        return _population_shapes(self, stamps)
 
     def make_shape(self) -> Shape:
         """The grain shape at this population's size, or at size 1 for a graded one (body frame,
@@ -407,8 +410,9 @@ class PopulationConfig(_Model):
 
 
 @lru_cache(maxsize=256)
-def _population_shapes(population: PopulationConfig) -> tuple[Shape, ...]:
-    """:meth:`PopulationConfig.make_shapes` (cached: a sieve size takes a search)."""
+def _population_shapes(population: PopulationConfig, stamps: tuple) -> tuple[Shape, ...]:
+    """:meth:`PopulationConfig.make_shapes` (cached: a sieve size takes a search; ``stamps``, the
+    mesh files' sizes and modification times, make a changed file a new key)."""
     from granpack.shapes.sizes import size_of
 
     size = population.size if population.grading is None else 1.0

@@ -63,7 +63,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from granpack._numba import thread_count
-from granpack.config import AUTO_ALERT_FRACTION, OverlapConfig, SolverConfig, ThreadsConfig, TimeSteppingConfig
 from granpack.contact.contacts import ContactSet
 from granpack.nscd.nlgs import NLGSOptions, solve
 from granpack.nscd.problem import assemble
@@ -76,17 +75,15 @@ __all__ = ["StepParameters", "StepInfo", "Prediction", "predict", "advance", "st
 #: overlap left by a position correction, as a fraction of the slop (module docstring)
 CORRECTED_OVERLAP = 0.1
 
-# the defaults of a run config (granpack.config declares each setting once)
-_STEPPING, _SOLVER, _OVERLAP, _THREADS = TimeSteppingConfig(), SolverConfig(), OverlapConfig(), ThreadsConfig()
-
 
 @dataclass(frozen=True)
 class StepParameters:
     """Settings of a Moreau–Jean step (units: d, sqrt(d/g)).
 
-    The defaults are those of a run config (:mod:`granpack.config`, where each setting is declared
-    once; ``alert`` the automatic one of grains of size 1 d); a run builds its own with
-    :func:`granpack.settling.step_parameters`.
+    A run builds its own from its config with :func:`granpack.settling.step_parameters`; the
+    defaults here are plain numbers, those of a run config's settings (``alert`` the automatic one
+    of grains of size 1 d; tests/test_config.py holds them to :mod:`granpack.config`), so that the
+    step depends on no config schema.
 
     Attributes:
         time_step: h, sqrt(d/g).
@@ -124,27 +121,27 @@ class StepParameters:
             (:mod:`granpack.nscd.nlgs`).
     """
 
-    time_step: float = _STEPPING.time_step
-    theta: float = _STEPPING.theta
-    rotation_from_start: bool = _STEPPING.rotation_update == "from-start"
-    friction: float = _SOLVER.friction
-    restitution: float = _SOLVER.restitution
-    tolerance: float = _SOLVER.tolerance
-    max_iterations: int = _SOLVER.max_iterations
-    check_every: int = _SOLVER.check_every
-    alert: float = AUTO_ALERT_FRACTION
-    overlap_slop: float = _OVERLAP.projection_slop
+    time_step: float = 5e-3
+    theta: float = 0.5
+    rotation_from_start: bool = False
+    friction: float = 0.0
+    restitution: float = 0.0
+    tolerance: float = 1e-4
+    max_iterations: int = 2000
+    check_every: int = 10
+    alert: float = 0.02
+    overlap_slop: float = 2e-3
     warm_tolerance: float = 0.05
     correction_sweeps: int = 200
     correction_step: float = 1e-3
-    recovery_slop: float = _OVERLAP.recovery_slop
-    recovery_rate: float = _OVERLAP.recovery_rate
-    recovery_speed: float = _OVERLAP.recovery_speed
+    recovery_slop: float = 5e-4
+    recovery_rate: float = 0.2
+    recovery_speed: float = 0.05
     slow_recovery_slop: float = 0.0
     slow_recovery_speed: float = 0.0
     damping: float = 0.0
-    parallel_points: int = _THREADS.parallel_points
-    nncg: bool = _SOLVER.acceleration == "nncg"
+    parallel_points: int = 2000
+    nncg: bool = True
 
     def __post_init__(self):
         if not self.time_step > 0:
