@@ -113,10 +113,10 @@ def test_export_command(tmp_path, packing, capsys):
 
     capsys.readouterr()
     with pytest.raises(SystemExit) as exit_info:
-        main(["export", str(tmp_path), "--format", "obj"])
+        main(["export", str(tmp_path), "--format", "dxf"])
     assert exit_info.value.code == 2
     err = capsys.readouterr().err.strip()
-    assert err.startswith("error: --format") and "vtk, png" in err and len(err.splitlines()) == 1
+    assert err.startswith("error: --format") and "vtk, png, stl, obj, ply" in err and len(err.splitlines()) == 1
 
     with pytest.raises(SystemExit) as exit_info:
         main(["export", str(tmp_path / "nowhere"), "--format", "vtk"])

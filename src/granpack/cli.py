@@ -590,15 +590,30 @@ def figures(
 @app.command()
 def export(
     run_dir: Path = typer.Argument(..., help="A run folder."),
-    format: str = typer.Option("vtk", "--format", help="vtk or png."),
+    format: str = typer.Option("vtk", "--format", help="vtk, png, or grain surfaces: stl, obj, ply."),
+    images: bool = typer.Option(False, "--images", help="stl, obj, ply: also the periodic images of the grains crossing the cell's sides."),
 ) -> None:
-    """Files for ParaView (vtk: RUN_DIR/vtk/*.vtu) or a rendered picture (png: RUN_DIR/packing.png)."""
-    formats = ("vtk", "png")
+    """Files for ParaView (vtk: RUN_DIR/vtk/*.vtu), a rendered picture (png: RUN_DIR/packing.png), or every
+    grain as a closed triangulated surface, grain ids kept (stl, obj, ply: RUN_DIR/surfaces/grains.FORMAT)."""
+    from granpack.mesh.surfaces import FORMATS as SURFACE_FORMATS
+
+    formats = ("vtk", "png", *SURFACE_FORMATS)
     if format not in formats:
         raise InputError(f"--format must be one of {', '.join(formats)} (got {format!r})")
+    if images and format not in SURFACE_FORMATS:
+        raise InputError(f"--images goes with --format {', '.join(SURFACE_FORMATS)} (got --format {format})")
     from granpack.io.gsd import read_packing
 
     packing = read_packing(run_dir / "final.gsd")
+    if format in SURFACE_FORMATS:
+        from granpack.io.atomic import output_folder
+        from granpack.mesh.surfaces import write_surfaces
+
+        output_folder(run_dir / "surfaces", "RUN_DIR")
+        path, count = write_surfaces(packing, run_dir / "surfaces" / f"grains.{format}", format, images=images)
+        typer.echo(f"wrote {path} ({count} closed surfaces: {packing.state.n} grains"
+                   f"{f', {count - packing.state.n} periodic images' if images else ''})")
+        return
     if format == "vtk":
         from granpack.io.vtk import write_vtk
 

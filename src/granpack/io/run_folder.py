@@ -35,7 +35,7 @@ RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELIN
 CAMPAIGN_FILES = ("campaign.toml", "runs.csv", "summary.csv")
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
-RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",)}
+RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",), "surfaces": (".stl", ".obj", ".ply")}
 
 
 def is_resolved_config(path: Path, config_text: str) -> bool:
