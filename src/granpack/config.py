@@ -32,7 +32,8 @@ import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, Strict, ValidationError, ValidationInfo, field_validator,
+                      model_validator)
 
 from granpack.errors import InputError
 from granpack.grading import Grading
@@ -174,9 +175,14 @@ class GradingConfig(_Model):
 class PopulationConfig(_Model):
     """One grain population: a shape at one size and its share of the solid volume."""
 
-    shape: Literal["sphere", "pinacoid", "polyhedron", "mesh"] = Field(
-        description='Grain shape: "sphere", "pinacoid", "polyhedron" (then give vertices) or "mesh" (then give '
-        "files: each grain is the convex hull of a surface read from a file)."
+    #: the seed of the run the population belongs to (set by :class:`RunConfig`; a rock population's
+    #: default :attr:`library_seed`); 1, the run's default, for a population on its own
+    _run_seed: int = PrivateAttr(default=1)
+
+    shape: Literal["sphere", "pinacoid", "polyhedron", "mesh", "rock"] = Field(
+        description='Grain shape: "sphere", "pinacoid", "polyhedron" (then give vertices), "mesh" (then give '
+        'files: each grain is the convex hull of a surface read from a file) or "rock" (convex rocks generated from '
+        "the seed: `aspect`, `faces`, `shapes`, `roughness`)."
     )
     size: Annotated[Optional[_Number], Field(validate_default=True)] = Field(
         default=None,
@@ -196,9 +202,27 @@ class PopulationConfig(_Model):
     volume_fraction: _Number = Field(
         ge=0, le=1, description="Share of the total solid volume; the shares of all populations sum to 1."
     )
+    aspect_distribution: Annotated[Optional[tuple[_Point, ...]], Strict(False), Field(validate_default=True)] = Field(
+        default=None, min_length=1, max_length=64,
+        description="Pinacoid only, instead of `aspect`: aspect ratios varying grain by grain, as a table of classes "
+        "[[L/G, G/E, weight], ...] (weights: relative numbers of grains); one shape per row, each grain's row drawn "
+        "from the seed.",
+    )
+    aspect_lognormal: Annotated[Optional[tuple[_Pair, _Pair]], Strict(False), Field(validate_default=True)] = Field(
+        default=None,
+        description="Pinacoid only, instead of `aspect`: aspect ratios varying grain by grain, ln(L/G) and ln(G/E) "
+        "independent normals given as [[median L/G, standard deviation of ln(L/G)], [median G/E, standard deviation "
+        "of ln(G/E)]], each truncated to ratios >= 1 and cut into `aspect_classes` classes of equal probability.",
+    )
+    aspect_classes: Annotated[Optional[int], Field(validate_default=True)] = Field(
+        default=None, ge=1, le=8,
+        description="With `aspect_lognormal`: classes per ratio (a ratio of spread 0 has one), so up to "
+        "aspect_classes^2 shapes; default 4.",
+    )
     aspect: Annotated[Optional[_Pair], Field(validate_default=True)] = Field(
         default=None,
-        description="Pinacoid only: [L/G, G/E] (elongation, flatness), each >= 1; default [1, 1] (isometric).",
+        description="Pinacoid and rock: [L/G, G/E] (elongation, flatness), each >= 1; default [1, 1] (isometric) "
+        "unless `aspect_distribution` or `aspect_lognormal` is given.",
     )
     vertices: Annotated[Optional[tuple[_Point, ...]], Strict(False), Field(validate_default=True)] = Field(
         default=None,
@@ -225,6 +249,25 @@ class PopulationConfig(_Model):
         description="Mesh only: the relative number of grains of each file's shape, one weight per file in the "
         "order of `files` (each pattern's matches by name); default: equal numbers.",
     )
+    faces: Annotated[Optional[int], Field(validate_default=True)] = Field(
+        default=None, ge=8, le=64,
+        description="Rock only: the faces of each rock (it has 2 faces - 4 vertices); default 14 (24 vertices).",
+    )
+    shapes: Annotated[Optional[int], Field(validate_default=True)] = Field(
+        default=None, ge=1, le=100,
+        description="Rock only: how many distinct rocks the population's grains are drawn from, in equal numbers; "
+        "default 10.",
+    )
+    roughness: Annotated[Optional[_Number], Field(validate_default=True)] = Field(
+        default=None, ge=0, le=2,
+        description="Rock only: the random step of the faces' normals from an even spread, in mean spacings "
+        "between normals (0: near-regular rocks; 1: faces of very unequal sizes); default 0.5.",
+    )
+    seed: Optional[int] = Field(
+        default=None, ge=0,
+        description="Rock only: the seed the rocks are generated from; unset: the run's seed (so another run seed "
+        "packs other rocks).",
+    )
     name: Annotated[Optional[str], Field(validate_default=True)] = Field(
         default=None,
         description='Label in tables and outputs; default derived from shape, size and aspect, e.g. "pinacoid-1-1x1".',
@@ -234,10 +277,15 @@ class PopulationConfig(_Model):
     @classmethod
     def _check_aspect(cls, aspect: tuple[float, float] | None, info: ValidationInfo) -> tuple[float, float] | None:
         shape = info.data.get("shape")
-        if shape != "pinacoid":
+        if shape not in ("pinacoid", "rock"):
             if aspect is not None and shape is not None:
-                raise ValueError(f"only allowed for shape 'pinacoid' (this population is a {shape})")
+                raise ValueError(f"only allowed for shapes 'pinacoid' and 'rock' (this population is a {shape})")
             return aspect
+        varying = [k for k in ("aspect_distribution", "aspect_lognormal") if info.data.get(k) is not None]
+        if varying:
+            if aspect is not None:
+                raise ValueError(f"give either aspect (one shape) or {varying[0]} (ratios varying grain by grain), not both")
+            return None
         if aspect is None:
             return (1.0, 1.0)
         if not (aspect[0] >= 1.0 and aspect[1] >= 1.0):
@@ -247,6 +295,35 @@ class PopulationConfig(_Model):
         except ShapeError as exc:
             raise ValueError(str(exc)) from None
         return aspect
+
+    @field_validator("aspect_distribution", "aspect_lognormal", "aspect_classes")
+    @classmethod
+    def _check_aspect_classes(cls, value, info: ValidationInfo):
+        shape = info.data.get("shape")
+        if shape != "pinacoid":
+            if value is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'pinacoid' (this population is a {shape})")
+            return value
+        if info.field_name == "aspect_distribution" and value is not None:
+            for row in value:
+                if not (row[0] >= 1.0 and row[1] >= 1.0 and row[2] >= 0):
+                    raise ValueError(f"each row is [L/G, G/E, weight] with L/G >= 1, G/E >= 1 and weight >= 0 (got "
+                                     f"[{row[0]:g}, {row[1]:g}, {row[2]:g}])")
+            if not sum(row[2] for row in value) > 0:
+                raise ValueError("the weights (third column) must have a positive sum")
+        if info.field_name == "aspect_lognormal" and value is not None:
+            if info.data.get("aspect_distribution") is not None:
+                raise ValueError("give either aspect_distribution (a table) or aspect_lognormal, not both")
+            if not all(m >= 1.0 and s >= 0 for m, s in value):
+                raise ValueError(f"[[median L/G, sd of ln(L/G)], [median G/E, sd of ln(G/E)]] need medians >= 1 and "
+                                 f"sds >= 0 (got {[list(v) for v in value]})")
+        if info.field_name == "aspect_classes":
+            if info.data.get("aspect_lognormal") is None:
+                if value is not None:
+                    raise ValueError("only allowed with aspect_lognormal")
+                return value
+            return 4 if value is None else value
+        return value
 
     @field_validator("vertices")
     @classmethod
@@ -319,6 +396,18 @@ class PopulationConfig(_Model):
             raise ValueError("weights must be >= 0 with a positive sum")
         return weights
 
+    @field_validator("faces", "shapes", "roughness", "seed")
+    @classmethod
+    def _check_rock_setting(cls, value, info: ValidationInfo):
+        shape = info.data.get("shape")
+        if shape != "rock":
+            if value is not None and shape is not None:
+                raise ValueError(f"only allowed for shape 'rock' (this population is a {shape})")
+            return value
+        if value is not None or info.field_name == "seed":
+            return value
+        return {"faces": 14, "shapes": 10, "roughness": 0.5}[info.field_name]
+
     @field_validator("name")
     @classmethod
     def _derive_name(cls, name: str | None, info: ValidationInfo) -> str | None:
@@ -333,8 +422,10 @@ class PopulationConfig(_Model):
             return None  # another field is invalid and is reported instead
         derived = f"{shape}-{size:g}" if size is not None else f"{shape}-{grading.label()}"
         aspect = info.data.get("aspect")
-        if shape == "pinacoid" and aspect is not None:
+        if shape in ("pinacoid", "rock") and aspect is not None:
             derived += f"-{aspect[0]:g}x{aspect[1]:g}"
+        elif shape == "pinacoid":
+            derived += "-aspects"
         return derived
 
     @model_validator(mode="after")
@@ -370,10 +461,35 @@ class PopulationConfig(_Model):
     @property
     def shape_weights(self) -> tuple[float, ...]:
         """The number share of each of :meth:`make_shapes`' shapes among the population's grains (sum 1)."""
-        n = 1 if self.shape != "mesh" else len(self.files)
+        if self.aspect_classes_of is not None:
+            return tuple(w for _, w in self.aspect_classes_of)
+        n = {"mesh": len(self.files or ()), "rock": self.shapes}.get(self.shape, 1)
         weights = self.weights if self.weights is not None else (1.0,) * n
         total = math.fsum(weights)
         return tuple(w / total for w in weights)
+
+    @property
+    def aspect_classes_of(self) -> list[tuple[tuple[float, float], float]] | None:
+        """The classes ``((L/G, G/E), weight)`` of a pinacoid population whose aspect ratios vary
+        (:mod:`granpack.shapes.aspect_classes`), None for one aspect."""
+        from granpack.shapes.aspect_classes import lognormal_classes, table_classes
+
+        if self.aspect_distribution is not None:
+            return table_classes(self.aspect_distribution)
+        if self.aspect_lognormal is not None:
+            return lognormal_classes(*self.aspect_lognormal, self.aspect_classes)
+        return None
+
+    @property
+    def library_seed(self) -> int:
+        """The seed of a rock population's rocks: its `seed`, or the run's."""
+        return self.seed if self.seed is not None else self._run_seed
+
+    def with_run_seed(self, seed: int) -> "PopulationConfig":
+        """This population in a run of seed ``seed`` (the seed its rocks default to)."""
+        out = self.model_copy()
+        out._run_seed = int(seed)
+        return out
 
     def mesh_grains(self) -> tuple:
         """The :class:`~granpack.shapes.from_mesh.MeshGrain` of each file, in the file's unit (mesh only)."""
@@ -389,7 +505,7 @@ class PopulationConfig(_Model):
         stamps = ()
         if self.shape == "mesh":
             stamps = tuple((st.st_size, st.st_mtime_ns) for st in (Path(f).stat() for f in self.files))
-        return _population_shapes(self, stamps)
+        return _population_shapes(self, stamps, self.library_seed)
 
     def make_shape(self) -> Shape:
         """The grain shape at this population's size, or at size 1 for a graded one (body frame,
@@ -397,9 +513,9 @@ class PopulationConfig(_Model):
 
         Returns:
             ``Sphere(size)``, ``Pinacoid.from_size(size, *aspect)`` or
-            ``polyhedron_of_size(vertices, size)``; a mesh population's first shape.
+            ``polyhedron_of_size(vertices, size)``; the first shape of a population of several.
         """
-        if self.shape == "mesh" or self.size_definition != "circumscribed":
+        if len(self.shape_weights) > 1 or self.shape == "rock" or self.size_definition != "circumscribed":
             return self.make_shapes()[0]
         size = self.size if self.grading is None else 1.0
         if self.shape == "sphere":
@@ -410,14 +526,24 @@ class PopulationConfig(_Model):
 
 
 @lru_cache(maxsize=256)
-def _population_shapes(population: PopulationConfig, stamps: tuple) -> tuple[Shape, ...]:
+def _population_shapes(population: PopulationConfig, stamps: tuple, seed: int) -> tuple[Shape, ...]:
     """:meth:`PopulationConfig.make_shapes` (cached: a sieve size takes a search; ``stamps``, the
-    mesh files' sizes and modification times, make a changed file a new key)."""
+    mesh files' sizes and modification times, make a changed file a new key; ``seed``, a rock
+    population's :attr:`~PopulationConfig.library_seed`)."""
+    from granpack.shapes.rock import rock_library
     from granpack.shapes.sizes import size_of
 
     size = population.size if population.grading is None else 1.0
     if population.shape == "mesh":
         bases = [(g.shape, g.sizes[population.size_definition]) for g in population.mesh_grains()]
+    elif population.shape == "rock" or population.aspect_classes_of is not None:
+        if population.shape == "rock":
+            generated = rock_library(seed, population.shapes, population.aspect, population.faces,
+                                     population.roughness, name=population.name)
+        else:
+            generated = [Pinacoid.from_size(1.0, *aspect, name=f"{population.name}-{aspect[0]:.3g}x{aspect[1]:.3g}")
+                         for aspect, _ in population.aspect_classes_of]
+        bases = [(s, size_of(s, population.size_definition)) for s in generated]
     elif population.size_definition == "circumscribed":
         return (population.make_shape(),)
     else:
@@ -647,7 +773,7 @@ class RunConfig(_Model):
 
     @field_validator("populations")
     @classmethod
-    def _check_shares(cls, populations: tuple[PopulationConfig, ...]) -> tuple[PopulationConfig, ...]:
+    def _check_shares(cls, populations: tuple[PopulationConfig, ...], info: ValidationInfo) -> tuple[PopulationConfig, ...]:
         total = math.fsum(p.volume_fraction for p in populations)
         if abs(total - 1.0) > SHARE_TOLERANCE:
             shares = ", ".join(f"{p.volume_fraction:g}" for p in populations)
@@ -659,7 +785,8 @@ class RunConfig(_Model):
                     f"populations[{seen[p.name]}] and populations[{k}] have the same name {p.name!r}; give them distinct names"
                 )
             seen[p.name] = k
-        return populations
+        return tuple(p.with_run_seed(info.data.get("seed", 1)) if p.shape == "rock" and p.seed is None else p
+                     for p in populations)
 
     @field_validator("lateral_size")
     @classmethod
