@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import tomllib
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from granpack.config import load_config_dict
 from granpack.errors import InputError
@@ -17,6 +18,9 @@ from granpack.shapes.aspect_classes import lognormal_quantiles
 from granpack.shapes.rock import rock, rock_library
 from granpack.shapes.sizes import aspect_ratios
 from granpack.simulation import run_packing
+
+#: a fixed rotation that leaves no axis in place
+TURN = Rotation.from_rotvec([0.3, -0.7, 1.1]).as_matrix()
 
 
 def full_mass_properties_agree(vertices, rel=1e-10):
@@ -76,6 +80,38 @@ def test_pinacoid_mass_properties_against_trimesh(aspect):
     full_mass_properties_agree(body.vertices + [0.5, 0.25, -2.0])
     mesh = trimesh.convex.convex_hull(body.vertices)
     assert np.sort(body.principal_moments) == pytest.approx(np.sort(mesh.principal_inertia_components), rel=1e-10)
+
+
+def body_frame_agrees(shape, rel=1e-10):
+    """The shape's own volume, centroid (the origin of its body frame) and inertia tensor (diagonal,
+    its principal moments) against trimesh's of the hull of its vertices."""
+    mesh = trimesh.convex.convex_hull(shape.vertices)
+    assert shape.volume == pytest.approx(mesh.volume, rel=rel)
+    assert np.abs(mesh.center_mass).max() <= rel * shape.size
+    assert np.abs(np.diag(shape.principal_moments) - mesh.moment_inertia).max() <= rel * shape.principal_moments.max()
+
+
+def every_kind(tmp_path) -> dict:
+    """One shape of each kind: from a file (its hull), reduced, a rock, a pinacoid of an aspect class."""
+    from test_shapes_from_mesh import noisy_ellipsoid
+
+    from granpack.io.mesh_files import read_mesh
+    from granpack.shapes.from_mesh import grain_from_mesh
+
+    noisy_ellipsoid(np.random.default_rng(5)).export(tmp_path / "scan.stl")
+    cfg = load_config_dict(config({"shape": "pinacoid", "aspect_distribution": [[1.3, 2.2, 1.0], [1.0, 1.0, 1.0]]}))
+    return {"file": grain_from_mesh(read_mesh(tmp_path / "scan.stl"), 1000).shape,
+            "reduced": grain_from_mesh(read_mesh(tmp_path / "scan.stl"), 24).shape,
+            "rock": Mixture.from_config(load_config_dict(config({"shape": "rock", "shapes": 2}))).population_shapes[0][1],
+            "pinacoid class": Mixture.from_config(cfg).population_shapes[0][0]}
+
+
+@pytest.mark.parametrize("kind", ["file", "reduced", "rock", "pinacoid class"])
+def test_every_kind_of_shape_has_trimesh_mass_properties(kind, tmp_path):
+    shape = every_kind(tmp_path)[kind]
+    body_frame_agrees(shape)
+    body_frame_agrees(shape.scaled(3.7))
+    full_mass_properties_agree(shape.vertices @ TURN.T + [1.0, 2.0, -0.5])
 
 
 def config(population: dict, seed: int = 3, n: int = 200) -> dict:

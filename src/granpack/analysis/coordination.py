@@ -41,7 +41,7 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, result
+from granpack.analysis._base import Compute, NotComputedError, result
 from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.contact.contacts import contact_types
 from granpack.packing import Packing
@@ -311,6 +311,17 @@ class Coordination(Compute):
         ``force`` rule. ``by_rule["force"]`` repeats the main figures.
         """
         return {rule: {**v, "with_rattlers": dict(v["with_rattlers"])} for rule, v in self._by_rule.items()}
+
+    def figures_of(self, grains: np.ndarray) -> dict:
+        """Backbone figures ``{N, Ns, Nd, Nt, Nc}`` of the bulk grains flagged in ``grains`` ``(N,)``
+        (a population, a shape class), with their ``rattler_fraction`` and ``n_analysed``; their
+        contacts with every other grain count."""
+        if not self._computed:
+            raise NotComputedError("Coordination.figures_of is available after compute()")
+        analysed = self._analysed & grains
+        n = int(analysed.sum())
+        return {**_figures(self._counts[analysed & ~self._rattlers]), "n_analysed": n,
+                "rattler_fraction": float((analysed & self._rattlers).sum() / n) if n else math.nan}
 
     @result
     def N(self) -> float:

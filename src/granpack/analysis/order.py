@@ -101,13 +101,16 @@ class Order(Compute):
         bulk: restrict to the bulk region.
         population: restrict to one population index (all if ``None``).
         baseline_samples: Monte Carlo samples of the isotropic baseline.
+        grains: ``(N,)`` bool, restrict to these grains (a shape class; all if ``None``).
     """
 
-    def __init__(self, z_range: tuple[float, float] | None = None, bulk: bool = True, population: int | None = None, baseline_samples: int = 100):
+    def __init__(self, z_range: tuple[float, float] | None = None, bulk: bool = True, population: int | None = None,
+                 baseline_samples: int = 100, grains: np.ndarray | None = None):
         self.z_range = z_range
         self.bulk = bulk
         self.population = population
         self.baseline_samples = int(baseline_samples)
+        self.grains = grains
 
     def compute(self, packing: Packing) -> "Order":
         """Compute the order parameters of ``packing``."""
@@ -116,6 +119,8 @@ class Order(Compute):
         mask = ~state.shapes.is_sphere[state.kind]
         if self.population is not None:
             mask &= state.population == self.population
+        if self.grains is not None:
+            mask &= self.grains
         oriented = bool(mask.any())  # spheres only: no orientation, the figures nan by nature (no warning)
         if self.bulk:
             region = analysed_region(packing, self.z_range)

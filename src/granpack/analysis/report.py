@@ -7,7 +7,9 @@ figures with the gap-rule and the detection types under ``gap_rule`` and ``geome
 ``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
 {z, proportions, ...}, ``size_classes`` {sieves, passing, profile, coordination, ...; a packing of
-several sizes only}, ``n_particles``, ``populations``, ``seed``, ``version``; extras:
+several sizes only}, ``grain_shapes`` {elongation, flatness, sphericity, convexity: one value per
+grain}, ``n_particles``, ``populations`` (each with its coordination, order, shape descriptors and
+shape classes), ``seed``, ``version``; extras:
 ``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
 ``nan`` here and ``null`` in the file.
 """
@@ -24,6 +26,7 @@ import numpy as np
 
 from granpack.analysis._base import AnalysisWarning
 from granpack.analysis.coordination import Coordination
+from granpack.analysis.grain_shapes import GrainShapes
 from granpack.analysis.balance import Equilibrium
 from granpack.analysis.homogeneity import Homogeneity
 from granpack.analysis.interpenetration import Interpenetration
@@ -78,7 +81,17 @@ class AnalysisOptions:
     criteria: EquilibriumCriteria = field(default_factory=EquilibriumCriteria)
 
 
-def _populations(packing: Packing) -> list[dict]:
+def _order_figures(order: Order, baseline: bool) -> dict:
+    """``{Q00, Q22, n_analysed}`` of a computed :class:`Order`, with its isotropic baseline if asked."""
+    out = {"Q00": order.Q00, "Q22": order.Q22, "n_analysed": order.n_analysed}
+    if baseline:
+        out["isotropic_baseline"] = order.baseline
+    return out
+
+
+def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, z_range) -> list[dict]:
+    """One row per population: its grains and shapes, and over its bulk grains the coordination
+    (:meth:`Coordination.figures_of`), order and shape descriptors, also per shape class."""
     state = packing.state
     total = state.mass.sum()
     out = []
@@ -97,6 +110,15 @@ def _populations(packing: Packing) -> list[dict]:
         }
         if len(kinds) > 1 and len(sizes):
             row["sizes"] = {"min": float(sizes.min()), "max": float(sizes.max()), "mean": float(sizes.mean())}
+        row["coordination"] = co.figures_of(members)
+        row["order"] = _order_figures(Order(z_range, population=a).compute(packing), baseline=True)
+        row["shape_descriptors"] = grain_shapes.summary(members)
+        row["shape_classes"] = [
+            {"shape": c["shape"], "n": int(c["grains"].sum()),
+             **{k: c[k] for k in ("elongation", "flatness", "sphericity", "convexity")},
+             "coordination": co.figures_of(c["grains"]),
+             "order": _order_figures(Order(z_range, grains=c["grains"]).compute(packing), baseline=False)}
+            for c in grain_shapes.classes[a]["classes"]]
         out.append(row)
     return out
 
@@ -145,6 +167,10 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         warnings.warn(m, AnalysisWarning, stacklevel=2)
 
     co, order, rdf = computed["coordination"], computed["order"], computed["pair_correlation"]
+    grain_shapes = GrainShapes().compute(packing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a population's or class's nan figures: the whole packing's warnings say why
+        populations = _populations(packing, co, grain_shapes, z_range)
     sizes = 2.0 * packing.state.radius
     several_sizes = packing.n_particles > 0 and sizes.max() > sizes.min() * (1 + 1e-9)
     if several_sizes:
@@ -168,7 +194,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
     return {
         "version": __version__,
         "n_particles": packing.n_particles,
-        "populations": _populations(packing),
+        "populations": populations,
         "seed": packing.seed,
         "status": packing.metadata.get("status"),
         "bulk": {
@@ -211,6 +237,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             "Q22_convention": "tensor form with prefactor 1/3, max over the in-plane frame (perfect order = 1)",
         },
         "pair_correlation": rdf_out,
+        "grain_shapes": grain_shapes.per_grain,
         "equilibrium": eq.figures,
         "interpenetration": {
             "max": ip.max,

@@ -55,7 +55,8 @@ def shape_spec(shape: Shape, index_of: dict[int, int] | None = None) -> dict:
     """A JSON-able description that :func:`shape_from_spec` turns back into the same shape.
 
     Pinacoids keep their defining dimensions (rebuilt bit for bit); other polyhedra keep their
-    body-frame vertices; spheres their diameter. A polyhedron scaled from another shape of the same
+    body-frame vertices (and the ``convexity`` of the surface a grain from a file is the hull of);
+    spheres their diameter. A polyhedron scaled from another shape of the same
     table (a graded grain; ``index_of`` maps ``id(shape)`` to its kind) keeps that kind and the
     factor, ``{"type": "scaled", "of": k, "factor": f}``.
     """
@@ -74,7 +75,10 @@ def shape_spec(shape: Shape, index_of: dict[int, int] | None = None) -> dict:
             "name": shape.name,
         }
     if isinstance(shape, ConvexPolyhedron):
-        return {"type": "polyhedron", "vertices": shape.vertices.tolist(), "name": shape.name}
+        spec = {"type": "polyhedron", "vertices": shape.vertices.tolist(), "name": shape.name}
+        if shape.source_convexity is not None:
+            spec["convexity"] = shape.source_convexity
+        return spec
     raise TypeError(f"cannot store shape {shape!r}")
 
 
@@ -88,7 +92,9 @@ def shape_from_spec(spec: dict, earlier: list[Shape] | None = None) -> Shape:
     if kind == "pinacoid":
         return Pinacoid(spec["length"], spec["width"], spec["thickness"], spec["alpha_deg"], name=spec["name"])
     if kind == "polyhedron":
-        return ConvexPolyhedron(np.asarray(spec["vertices"], dtype=np.float64), name=spec["name"])
+        shape = ConvexPolyhedron(np.asarray(spec["vertices"], dtype=np.float64), name=spec["name"])
+        shape.source_convexity = spec.get("convexity")
+        return shape
     raise ValueError(f"unknown shape type {kind!r}")
 
 

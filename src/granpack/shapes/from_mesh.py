@@ -98,11 +98,13 @@ def grain_from_mesh(mesh: MeshFile, max_vertices: int) -> MeshGrain:
     volume, _, moments, aspect, axes = hull_descriptors(vertices)
     if len(vertices) <= max_vertices:
         shape = ConvexPolyhedron(vertices, name=mesh.path.stem)
+        shape.source_convexity = mesh.volume / volume
         return MeshGrain(source=mesh.path, shape=shape, mesh_volume=mesh.volume, hull_volume=volume,
                          hull_vertex_count=len(vertices), hull_moments=moments, hull_aspect=aspect, deviations=None)
     reduced = fit_to_hull(vertices[reduce_hull(vertices, max_vertices)], volume, moments, aspect, axes)
     reduced = reduced[np.sort(ConvexHull(reduced).vertices)]  # every point extreme after the scaling too
     shape = ConvexPolyhedron(reduced, name=mesh.path.stem)
+    shape.source_convexity = mesh.volume / volume
     got_aspect = aspect_ratios(shape)
     got_moments = np.sort(shape.principal_moments)
     deviations = Deviations(

@@ -100,6 +100,9 @@ class ConvexPolyhedron(Shape):
     """
 
     kind = "polyhedron"
+    #: convexity of the surface this grain is the convex hull of (volume it encloses / hull
+    #: volume, :mod:`granpack.shapes.from_mesh`); None for a grain given as a convex body
+    source_convexity: float | None = None
 
     def __init__(self, vertices, name: str = "polyhedron", *, coplanar_tol: float = 1e-9):
         pts = np.asarray(vertices, dtype=np.float64)
@@ -188,6 +191,14 @@ class ConvexPolyhedron(Shape):
     @property
     def principal_moments(self) -> np.ndarray:
         return self._moments.copy()
+
+    @property
+    def surface_area(self) -> float:
+        """Area of the surface, d^2: the sum over faces of :math:`\\tfrac12 |\\sum_k (v_k - v_0) \\times
+        (v_{k+1} - v_0)|` (each face a convex polygon, its vertices in order round it)."""
+        v = self.vertices
+        return float(sum(0.5 * _length(np.cross(v[f[1:-1]] - v[f[0]], v[f[2:]] - v[f[0]]).sum(axis=0))
+                         for f in self.faces))
 
     @property
     def circumscribed_radius(self) -> float:

@@ -26,7 +26,7 @@ from granpack.shapes.polyhedron import ConvexPolyhedron
 from granpack.shapes.sphere import Sphere
 
 __all__ = ["SIZE_DEFINITIONS", "SIEVE_TOLERANCE", "size_of", "sieve_size", "equivalent_volume_size",
-           "aspect_ratios", "principal_extents"]
+           "aspect_ratios", "principal_extents", "sphericity"]
 
 #: the size definitions a population may grade in
 SIZE_DEFINITIONS = ("circumscribed", "sieve", "equivalent_volume")
@@ -145,3 +145,10 @@ def aspect_ratios(shape: Shape) -> tuple[float, float]:
     ``aspect``; ``(1, 1)`` for a sphere or a cube)."""
     length, width, thickness = principal_extents(shape)
     return float(length / width), float(width / thickness)
+
+
+def sphericity(shape: Shape) -> float:
+    """Wadell's sphericity, the area of the ball of the same volume over the grain's area,
+    :math:`\\psi = \\pi^{1/3} (6V)^{2/3} / A`, in (0, 1]: 1 for a sphere, 0.806 for a cube,
+    0.846 for a regular octahedron."""
+    return float(math.pi ** (1.0 / 3.0) * (6.0 * shape.volume) ** (2.0 / 3.0) / shape.surface_area)

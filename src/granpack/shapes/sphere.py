@@ -39,6 +39,11 @@ class Sphere(Shape):
         return np.full(3, self.mass * self.diameter**2 / 10.0)
 
     @property
+    def surface_area(self) -> float:
+        """:math:`\\pi d^2`, d^2."""
+        return math.pi * self.diameter ** 2
+
+    @property
     def circumscribed_radius(self) -> float:
         return self.radius
 
