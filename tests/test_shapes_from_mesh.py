@@ -203,7 +203,7 @@ def test_an_isometric_pinacoid_from_a_file_packs_as_the_built_in_one(tmp_path):
 n_particles = 24
 lateral_size = 4.0
 [equilibrium]
-max_time = 0.3
+max_time = 2.0
 check_interval = 0.1
 [[populations]]
 size = {size!r}
@@ -227,6 +227,48 @@ volume_fraction = 1.0
     for key in ("position", "orientation", "velocity"):
         assert np.array_equal(fa.log[f"granpack/{key}"], fb.log[f"granpack/{key}"]), key
     assert not math.isclose(float(np.abs(fa.log["granpack/velocity"]).max()), 0.0)
+
+
+def test_from_an_stl_the_pinacoid_packs_as_the_built_in_one_given_in_the_stl_vertex_order(tmp_path):
+    """An STL lists no vertices: they come in the order in which its triangles first bring them, and
+    the built-in pinacoid's order is no such order, since its first three vertices are corners of
+    the mid-plane z = 0 that no face holds, so that no STL's first triangle brings them. That order
+    is all that differs: the grain read from the STL packs bit for bit as the built-in pinacoid's
+    vertices given in the STL's order."""
+    size, body = exact_size_pinacoid()
+    first = body.vertices[:3]
+    normal = np.cross(first[1] - first[0], first[2] - first[0])
+    side = (body.vertices - first[0]) @ normal
+    assert side.min() < 0 < side.max()  # the plane of the first three vertices cuts the body: no face
+    L, G, E, ridge = body.length, body.width, body.thickness, body.ridge
+    corners = np.array([[L / 2, G / 2, 0.0], [-L / 2, G / 2, 0.0], [-L / 2, -G / 2, 0.0], [L / 2, -G / 2, 0.0],
+                        [ridge / 2, 0.0, E / 2], [-ridge / 2, 0.0, E / 2], [ridge / 2, 0.0, -E / 2],
+                        [-ridge / 2, 0.0, -E / 2]])
+    write_ascii_stl(tmp_path / "pinacoid.stl", corners, pinacoid_triangles(body))
+    stl_order = read_mesh(tmp_path / "pinacoid.stl").vertices
+    assert sorted(map(tuple, stl_order)) == sorted(map(tuple, corners))  # the same points, to the bit
+    common = f"""seed = 5
+n_particles = 24
+lateral_size = 4.0
+[equilibrium]
+max_time = 2.0
+check_interval = 0.1
+[[populations]]
+size = {size!r}
+volume_fraction = 1.0
+"""
+    (tmp_path / "from_stl.toml").write_text(common + 'shape = "mesh"\nfiles = ["pinacoid.stl"]\n')
+    (tmp_path / "built_in.toml").write_text(common + 'shape = "pinacoid"\n')
+    listed = ", ".join("[{!r}, {!r}, {!r}]".format(*(float(x) for x in v)) for v in stl_order)
+    (tmp_path / "listed.toml").write_text(common + f'shape = "polyhedron"\nvertices = [{listed}]\n')
+    run_packing(load_config(tmp_path / "from_stl.toml"), tmp_path / "stl", progress=False)
+    run_packing(load_config(tmp_path / "listed.toml"), tmp_path / "listed", progress=False)
+    run_packing(load_config(tmp_path / "built_in.toml"), tmp_path / "built_in", progress=False)
+    fa, fb, fc = (gsd.hoomd.open(tmp_path / name / "final.gsd")[0] for name in ("stl", "listed", "built_in"))
+    for key in ("position", "orientation", "velocity"):
+        assert np.array_equal(fa.log[f"granpack/{key}"], fb.log[f"granpack/{key}"]), key
+    assert len(fa.log["contacts/body_i"]) > 10  # the grains have met
+    assert not np.array_equal(fa.log["granpack/position"], fc.log["granpack/position"])  # the order tells
 
 
 def run_main(argv, capsys) -> tuple[int, str, str]:
