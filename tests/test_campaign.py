@@ -362,6 +362,9 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
     assert "volume_fraction" in (out / "bad" / "seed-11" / "error.txt").read_text()
     for run in good:  # each run's progress went to its progress.log, ending with how it ended
         log = (out / run.folder / "progress.log").read_text().splitlines()
+        warned = [line for line in log if line.startswith("warning: ")]  # its advice first (max_time)
+        assert warned and log[:len(warned)] == warned
+        log = log[len(warned):]
         assert log[0].startswith(f"pouring {run.config['n_particles']} grains") and "settling t = " in log[2]
         assert log[-1].startswith(("equilibrium at t = ", "not at rest at t = "))
     for column in ("solid_fraction.bulk", "coordination.N"):

@@ -796,6 +796,11 @@ def test_progress_log_takes_the_lines_and_notes_and_overwrite_removes_it(tmp_pat
     simulation.run_packing(load_config(path), out, progress="log")
     assert capsys.readouterr().err == ""
     lines = (out / "progress.log").read_text().splitlines()
+    from granpack.advice import advise
+
+    warned = [f"warning: {w}" for w in advise(load_config(path))]  # max_time = 1, a short pile
+    assert len(warned) == 2 and lines[:2] == warned
+    lines = lines[2:]
     assert lines[0].startswith("pouring 20 grains") and lines[1].startswith("poured in")
     at_checks = [line for line in lines[2:-1] if "(at the last check" not in line]
     assert [line.split(", step")[0] for line in at_checks] == [f"settling t = {t:.2f}/1 sqrt(d/g)"

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from granpack.advice import settings_warnings
 from granpack.config import (
     AUTO_ALERT_FRACTION,
     MOVED_SOLVER_KEYS,
@@ -275,15 +276,17 @@ EXAMPLE_FILES = [p for p in sorted(EXAMPLES.glob("*.toml")) if "mixtures" not in
 @pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
 def test_examples_load(path):
     cfg = load_config(path)
-    # the study's 3000 grains; the demo's 300; the README's 1000 spheres; the graded aggregate's 5000 (its coarse fractions within 0.3 %)
-    assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000, "spheres-1000.toml": 1000}.get(path.name, 3000)
+    # the study's 3000 grains; the demo's 300; the README's 1000 spheres; the graded aggregate's 5000
+    # (its coarse fractions within 0.3 %) and its coarse fraction's 1200
+    assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000, "aggregate-8-22.toml": 1200,
+                               "spheres-1000.toml": 1000}.get(path.name, 3000)
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
 @pytest.mark.parametrize("path", EXAMPLE_FILES, ids=lambda p: p.name)
 def test_examples_follow_the_rules_of_thumb(path):
     # no example should make `granpack check` warn of a setting (a graded one's time step included)
-    assert load_config(path).advisories() == []
+    assert settings_warnings(load_config(path)) == []
 
 
 def test_examples_readme_lists_every_example():
@@ -299,7 +302,8 @@ def test_example_lateral_sizes_and_families():
     # cells narrowed for a bulk region (tests/test_examples.py): the study's 8 d where it leaves one
     assert lateral == {"demo.toml": 3.0, "aggregate-4-22.toml": 2.5, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
                        "pinacoids-flat-elongated.toml": 4.0, "pinacoids-flat.toml": 5.5,
-                       "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0, "spheres-1000.toml": 8.0}
+                       "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0, "spheres-1000.toml": 8.0,
+                       "aggregate-8-22.toml": 2.2}
     aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
                ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
                 "pinacoids-flat-elongated.toml")}
@@ -307,9 +311,9 @@ def test_example_lateral_sizes_and_families():
 
 
 def test_settings_outside_their_usual_range_are_named_as_advisories():
-    assert load_config_dict(pinacoids()).advisories() == []
-    notes = load_config_dict(pinacoids(time_stepping={"time_step": 0.02}, solver={"tolerance": 0.01},
-                                       equilibrium={"max_time": 10.0})).advisories()
+    assert settings_warnings(load_config_dict(pinacoids())) == []
+    notes = settings_warnings(load_config_dict(pinacoids(time_stepping={"time_step": 0.02}, solver={"tolerance": 0.01},
+                                                         equilibrium={"max_time": 10.0})))
     assert [note.split(" = ")[0] for note in notes] == ["time_stepping.time_step", "solver.tolerance", "equilibrium.max_time"]
 
 

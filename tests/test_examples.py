@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from granpack.campaign import load_campaign
-from granpack.cli import _column_warning
+from granpack.advice import column_warning
 from granpack.config import load_config, load_config_dict
 from granpack.mixture import Mixture
 
@@ -34,7 +34,7 @@ def test_the_examples_are_found():
 @pytest.mark.parametrize("path", RUN_CONFIGS, ids=lambda p: p.name)
 def test_run_config_leaves_a_bulk_region(path):
     config = load_config(path)
-    warning = _column_warning(config, Mixture.from_config(config))
+    warning = column_warning(config, Mixture.from_config(config))
     assert warning is None, f"{path.name}: {warning}"
     # the needed 5 d (2 + 1 + 2) with a margin: a settled pile's surface stands below the estimate
     assert _expected_column(config) >= 7.5, path.name
@@ -46,7 +46,7 @@ def test_every_campaign_run_leaves_a_bulk_region(path):
     short = {}
     for run in spec.runs:
         config = load_config_dict(run.config, source=f"{path.name}: {run.mixture}")
-        warning = _column_warning(config, Mixture.from_config(config))
+        warning = column_warning(config, Mixture.from_config(config))
         if warning is not None:
             short[run.mixture] = warning
         # study-small's floor: 5 d / 0.9 (the examples' headers); the study: validate's 8 d.

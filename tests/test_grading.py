@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy import integrate
 
+from granpack.advice import settings_warnings
 from granpack.config import load_config_dict
 from granpack.errors import InputError
 from granpack.grading import Grading, achieved_passing, largest_deviation
@@ -121,7 +122,7 @@ def test_a_sieve_table_in_mm_scales_its_largest_grains_to_1_d():
 def test_the_time_step_is_judged_in_the_time_unit_of_the_smallest_grain():
     def step_warnings(d_min, time_step):
         config = load_config_dict(graded({**FULLER_KEYS, "d_min": d_min}, time_stepping={"time_step": time_step}))
-        return [note for note in config.advisories() if note.startswith("time_stepping.time_step")]
+        return [note for note in settings_warnings(config) if note.startswith("time_stepping.time_step")]
 
     assert step_warnings(0.25, 5e-3) == []  # 0.01 sqrt(0.25) = 5e-3
     assert "d_min = 0.1 d" in step_warnings(0.1, 5e-3)[0]
@@ -181,7 +182,7 @@ def test_a_graded_pile_pours_and_its_final_state_reads_back(tmp_path):
     from granpack.io.gsd import read_packing
     from granpack.simulation import run_packing
 
-    config = load_config_dict(graded(FULLER_KEYS | {"d_min": 0.3}, n=200, shape="pinacoid", lateral_size=3.0,
+    config = load_config_dict(graded(FULLER_KEYS | {"d_min": 0.3}, n=200, shape="pinacoid", lateral_size=2.1,
                                      equilibrium={"max_time": 1.0}))
     summary = run_packing(config, tmp_path, progress=False)
     packing = read_packing(tmp_path / "final.gsd")

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import signal
 import sys
@@ -101,35 +100,6 @@ def _note(message: str) -> None:
     typer.echo(message, err=True)
 
 
-def _warnings_of(cfg, mixture) -> list[str]:
-    """What `check` and `run` warn of: settings outside their usual range, a pile too short, a
-    grading that too few grains represent."""
-    column = _column_warning(cfg, mixture)
-    return cfg.advisories() + _grading_warnings(cfg, mixture) + ([column] if column else [])
-
-
-#: largest gap between the requested and the poured sieve curves that `check` accepts silently
-GRADING_DEVIATION = 0.02
-
-
-def _grading_warnings(cfg, mixture) -> list[str]:
-    """A warning for each graded population whose poured sieve curve strays from the requested one
-    by more than :data:`GRADING_DEVIATION` (too few grains in its coarse fractions), with the grain
-    count that would do (the deviation falls about as 1/N)."""
-    out = []
-    for k, population in enumerate(cfg.populations):
-        if population.grading is None or not mixture.counts[k]:
-            continue
-        deviation = mixture.largest_deviation(k)
-        if deviation > GRADING_DEVIATION:
-            coarse = int((mixture.sizes[k] > population.grading_curve.d_max / 2).sum())
-            needed = int(math.ceil(cfg.n_particles * deviation / GRADING_DEVIATION / 100.0)) * 100
-            out.append(f"{population.name}: the {mixture.counts[k]} grains follow the requested sieve curve to within "
-                       f"{100 * deviation:.1f} % (largest gap; {coarse} grains above half the largest size carry the "
-                       f"coarse fractions): n_particles about {needed} brings it within {100 * GRADING_DEVIATION:g} %")
-    return out
-
-
 def _shape_table(mixture):
     """Each population's shapes (:meth:`granpack.mixture.Mixture.shape_rows`) as a rich table: sizes in
     every definition, volume, aspect ratios, vertices, and for shapes from files the convexity and
@@ -171,32 +141,6 @@ def _sieve_table(mixture, k: int):
     for row in mixture.sieve_curve(k):
         table.add_row(f"{row['size']:.4g}", f"{100 * row['requested']:.2f}", f"{100 * row['achieved']:.2f}")
     return table
-
-
-def _column_warning(cfg, mixture) -> str | None:
-    """A warning when the settled pile is expected to be too low for a bulk region (else None).
-
-    The height is :meth:`granpack.mixture.Mixture.pile_height`; the bulk region of ``granpack analyze`` starts
-    ``n_bottom d`` above the wall, ends ``n_top d`` below the surface and must be at least ``d``
-    thick (``d`` the largest grain size, :class:`granpack.analysis.report.AnalysisOptions`).
-    """
-    from granpack.analysis.report import AnalysisOptions
-
-    opt = AnalysisOptions()
-    from granpack.mixture import PHI_MIXED_SIZES, PHI_ONE_SIZE
-
-    d = cfg.largest_size
-    phi = PHI_MIXED_SIZES if mixture.has_mixed_sizes else PHI_ONE_SIZE
-    height = mixture.pile_height(cfg.lateral_size, phi)
-    needed = (opt.n_bottom + opt.n_top + 1.0) * d
-    if height >= needed:
-        return None
-    n_needed = int(-(-cfg.n_particles * needed // height)) + 1 if height > 0 else None
-    more = f"about {n_needed} grains" if n_needed else "more grains"
-    return (f"the settled pile will stand about {height:.2g} d high (solid fraction about {phi:g} over the "
-            f"{cfg.lateral_size:g} d x {cfg.lateral_size:g} d cell), below the {needed:g} d that a bulk region "
-            f"needs ({opt.n_bottom:g} d above the wall, {d:g} d of bulk, {opt.n_top:g} d below the surface): "
-            f"the bulk figures of `granpack analyze` will be nan; use {more} or a narrower cell")
 
 
 def _settings_lines(cfg) -> list[str]:
@@ -268,6 +212,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
     from rich.table import Table
     from rich.text import Text
 
+    from granpack.advice import advise
     from granpack.campaign.spec import load_campaign
     from granpack.config import load_config_dict
     from granpack.mixture import Mixture
@@ -279,7 +224,7 @@ def _check_campaign(path: Path, json_output: bool) -> None:
         cfg = load_config_dict(runs[0].config, source=f"{path}: {mix.name}")
         first_config = first_config or cfg
         mixture = Mixture.from_config(cfg)
-        for warning in _warnings_of(cfg, mixture):
+        for warning in advise(cfg, mixture):
             warnings.append(f"{mix.name}: {warning}")
         for warning in _layout_warnings(runs[0].config):
             if warning not in warnings:
@@ -317,6 +262,7 @@ def check(
     from rich.table import Table
     from rich.text import Text
 
+    from granpack.advice import advise
     from granpack.config import load_config
     from granpack.mixture import Mixture
 
@@ -325,7 +271,7 @@ def check(
         return
     cfg = load_config(config)
     mixture = Mixture.from_config(cfg)
-    found = _layout_warnings(_toml_of(config)) + _warnings_of(cfg, mixture)
+    found = _layout_warnings(_toml_of(config)) + advise(cfg, mixture)
     if json_output:
         _print_json({
             "config": str(config), "valid": True, "n_particles": mixture.n_particles,
@@ -416,12 +362,11 @@ def _run_interrupted(exc: BaseException, out: Path, again: str) -> _Stop:
 
 def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: str, json_output: bool = False,
                     layout: tuple[str, ...] = (), source: str | None = None) -> dict:
-    from granpack.mixture import Mixture
     from granpack.simulation import run_packing
 
-    try:  # the warnings of `check`, before hours of work
+    try:  # run_packing warns as `check` does, before hours of work
         summary = run_packing(config, out, resume=resume, overwrite=overwrite, progress=True, source=source,
-                              warnings=[*layout, *_warnings_of(config, Mixture.from_config(config))])
+                              warnings=layout)
     except (KeyboardInterrupt, SystemError) as exc:
         if not _interrupted(exc):
             raise

@@ -796,7 +796,7 @@ class RunConfig(_Model):
             return lateral_size  # reported elsewhere
         largest = max(p.largest_size for p in populations)
         alert = _alert_distance(stepping, largest)
-        minimum = 2.0 * (largest + alert)
+        minimum = _narrowest_cell(largest, alert)
         if not lateral_size > minimum:
             raise ValueError(
                 f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
@@ -822,25 +822,6 @@ class RunConfig(_Model):
                              f"(got {self.equilibrium.check_interval:g})")
         return self
 
-    def advisories(self) -> list[str]:
-        """Settings that are valid but outside the range where runs are known to go well, each as
-        one line naming the key (``granpack check`` and ``granpack run`` print them as warnings)."""
-        notes = []
-        h = self.time_stepping.time_step
-        smallest = min(p.smallest_size for p in self.populations)
-        largest_step = 0.01 * math.sqrt(smallest)
-        if h > largest_step:
-            notes.append(f"time_stepping.time_step = {h:g} sqrt(d/g) is above 0.01 sqrt(d_min/g) = "
-                         f"{largest_step:.3g} (d_min = {smallest:g} d, the smallest grain): the overlaps "
-                         "of impacts and the error of the gaps held linear over a step grow with the step over sqrt(d_min/g)")
-        if self.solver.tolerance > 1e-3:
-            notes.append(f"solver.tolerance = {self.solver.tolerance:g} is above 1e-3: the contact forces are then "
-                         "too inexact for the equilibrium criteria to be met")
-        if self.equilibrium.max_time < 30.0:
-            notes.append(f"equilibrium.max_time = {self.equilibrium.max_time:g} sqrt(d/g): piles seldom come to rest "
-                         "before t = 30 (300 isometric pinacoids: about 60), so the run will likely stop at the cap")
-        return notes
-
     @property
     def largest_size(self) -> float:
         """Largest circumscribed diameter over the populations, d."""
@@ -850,6 +831,11 @@ class RunConfig(_Model):
     def resolved_alert_distance(self) -> float:
         """The alert distance in use, d: ``time_stepping.alert_distance``, or automatic if unset."""
         return _alert_distance(self.time_stepping, self.largest_size)
+
+    @property
+    def narrowest_cell(self) -> float:
+        """The bound ``lateral_size`` must exceed, d: 2 (largest grain size + alert distance)."""
+        return _narrowest_cell(self.largest_size, self.resolved_alert_distance)
 
     def with_seed(self, seed: int) -> "RunConfig":
         """This config with another seed.
@@ -883,6 +869,12 @@ class RunConfig(_Model):
             model = getattr(self, table)
             lines += ["", f"[{table}]"] + _toml_keys(model, type(model).model_fields)
         return "\n".join(lines) + "\n"
+
+
+def _narrowest_cell(largest_size: float, alert: float) -> float:
+    """The bound a periodic cell's side must exceed, d: ``2 (largest_size + alert)``, so that a pair
+    of grains interacts through at most one periodic image."""
+    return 2.0 * (largest_size + alert)
 
 
 def _alert_distance(stepping: TimeSteppingConfig, largest_size: float) -> float:

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
+from granpack.advice import advise
 from granpack.box import Box
 from granpack.config import RunConfig
 from granpack.contact import ContactSet
@@ -81,13 +82,15 @@ def deposit_order(state: ParticleState) -> dict:
     return {"Q00": q00, "Q22": q22}
 
 
-def initial_state(config: RunConfig, progress: bool = False) -> tuple[ParticleState, Mixture]:
+def initial_state(config: RunConfig, progress: bool = False,
+                  mixture: Mixture | None = None) -> tuple[ParticleState, Mixture]:
     """Pluviation: shuffled populations, deposited shells, random orientations, grains at rest.
 
     The random stream of ``config.seed`` draws, in order, the population order, the deposit's
-    release points and the orientations, so a seed gives one packing.
+    release points and the orientations, so a seed gives one packing. ``mixture`` is
+    ``Mixture.from_config(config)``, built here if not given.
     """
-    mixture = Mixture.from_config(config)
+    mixture = Mixture.from_config(config) if mixture is None else mixture
     shapes = mixture.particle_shape_table()
     rng = np.random.default_rng(config.seed)
     population = mixture.particle_populations(rng)
@@ -202,7 +205,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
             ``True``: the bars if stderr is a terminal, else the lines; ``False``: nothing. Notes
             (resuming, overwriting) go to stderr unless ``False`` or ``"log"``.
         warnings: lines written as ``warning: ...`` notes once the folder is accepted, before a
-            new run pours (what ``granpack check`` warns of; none on a resume).
+            new run pours (none on a resume), after those of :func:`granpack.advice.advise`, which
+            this function asks itself (the CLI adds the file's own, e.g. an old layout).
         source: where ``config`` came from (a file name), named when a resume finds a run of other
             settings.
 
@@ -215,7 +219,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         a mass ``m`` of ``d^3`` of grain; contacts; the largest overlap in d).
 
     Raises:
-        InputError: ``out_dir`` cannot be created or is a file; it holds a run and neither
+        InputError: ``config`` is refused by :func:`granpack.advice.advise` (a grading its grains
+            cannot represent), before anything is written; ``out_dir`` cannot be created or is a file; it holds a run and neither
             ``resume`` nor ``overwrite`` is given (or both are); its ``config.toml`` is not a
             granpack run's; its checkpoint or finished run belongs to another config.
         RunInterrupted: Ctrl-C (SIGINT, when running in the main thread) while settling: the run
@@ -228,10 +233,11 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     write = Lines(out_dir / PROGRESS_FILE if mode == "log" else None)
     note = Notes(mode, write)
     config_text = config.to_toml()
+    mixture = Mixture.from_config(config)
+    advice = advise(config, mixture)  # a refusal raises before the folder is touched
     if claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note, source=source):
         return read_json(out_dir / SUMMARY_FILE)
     wall_start = time.perf_counter()
-    mixture = Mixture.from_config(config)
     resumed = _resume_from(out_dir, config, mixture, source) if resume else None  # refused before anything is written
     write_text_atomic(out_dir / CONFIG_FILE, config_text)
     for stale in (SUMMARY_FILE, FINAL_FILE):
@@ -239,12 +245,12 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     if resumed is None:
         (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
         (out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
-        for warning in warnings:
+        for warning in [*advice, *warnings]:
             note(f"warning: {warning}")
         t0 = time.perf_counter()
         note(f"pouring {config.n_particles} grains (deposit {config.deposit.method}, lateral {config.deposit.lateral})",
              lines_only=True)
-        state, mixture = initial_state(config, progress=mode == "bar")
+        state, mixture = initial_state(config, progress=mode == "bar", mixture=mixture)
         record = RunRecord(clock=Clock(deposit_seconds=time.perf_counter() - t0), initial_order=deposit_order(state))
         note(f"poured in {record.clock.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None

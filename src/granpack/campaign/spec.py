@@ -117,7 +117,8 @@ def load_campaign(path: str | Path) -> CampaignSpec:
         The validated campaign.
 
     Raises:
-        InputError: unreadable file, bad TOML, or an invalid key (one line naming it).
+        InputError: unreadable file, bad TOML, an invalid key, or a mixture that no run can pack
+            (:func:`granpack.advice.refusal`): one line naming it.
     """
     path = Path(path)
     try:
@@ -205,13 +206,20 @@ def campaign_from_dict(data: dict[str, Any], *, source: str = "campaign", source
             raise InputError(f"{source}: mixtures[{i}].name '{mix.name}' is used by an earlier mixture")
         seen.add(mix.name)
 
+    from granpack.advice import refusal  # what no run can pack is refused before any run starts
     from granpack.config import load_config_dict  # the run-config contract (granpack.config)
+    from granpack.mixture import Mixture
 
     runs: list[RunSpec] = []
     for i, mix in enumerate(mixtures):
         merged = _merge(base, mix.overrides)
         merged["populations"] = copy.deepcopy(mix.populations)
-        first_seed = int(load_config_dict(merged, source=f"{source}: mixtures[{i}] ({mix.name})").seed)
+        where = f"{source}: mixtures[{i}] ({mix.name})"
+        config = load_config_dict(merged, source=where)
+        reason = refusal(config, Mixture.from_config(config))
+        if reason is not None:
+            raise InputError(f"{where}: {reason}")
+        first_seed = int(config.seed)
         for r in range(replicas):
             config = dict(merged, seed=first_seed + r)
             runs.append(
