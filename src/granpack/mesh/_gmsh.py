@@ -178,9 +178,8 @@ def build_mesh(plan: MeshPlan, msh_path: Path | None = None) -> VolumeMesh:
             itz.update(tag for _, tag in found if tag in inside and tag not in grain_of)
         matrix = sorted(inside - set(grain_of) - itz)
         outside = [(3, tag) for _, tag in gmsh.model.getEntities(3) if tag not in inside]
-        if outside:
-            gmsh.model.occ.remove(outside, recursive=True)
-            occ.synchronize()
+        if outside:  # from the model, not the OpenCASCADE shapes (30 s against 0.1 s for 300 grains)
+            gmsh.model.removeEntities(outside, recursive=True)
         aggregate = sorted(grain_of)
         gmsh.model.addPhysicalGroup(3, aggregate, PHASES["aggregate"], name="aggregate")
         gmsh.model.addPhysicalGroup(3, matrix, PHASES["matrix"], name="matrix")
