@@ -280,6 +280,31 @@ def test_two_part_sweeps_do_not_depend_on_the_thread_count():
     assert numba.get_num_threads() == threads
 
 
+def test_two_part_parallel_build_gives_the_serial_builds_bits():
+    """The parallel build of the two-part sweeps (two threads launched once per solve, meeting
+    through atomic words) gives the serial build's impulses, velocities and sweeps bit for bit,
+    converged or stopped mid-way, with and without the NNCG momentum."""
+    from granpack.nscd.integrator import _sides
+    from granpack.nscd.nlgs import _gather_points, _solve_frictionless_two_parts, _two_parts
+
+    state, pr, contacts = _lattice_problem(layers=6)
+    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, H,
+                       side=_sides(pr.x_tt, contacts.point[:, 2]))
+    order, bounds = _two_parts(problem)
+    body, data, offset, r0 = _gather_points.serial(order, problem.body, problem.normal_data, problem.offset,
+                                                   np.zeros(problem.n_points))
+    for nncg, tol, sweeps in ((False, 1e-10, 200000), (True, 1e-10, 200000), (True, 1e-6, 51)):
+        out = []
+        for build in (_solve_frictionless_two_parts.serial, _solve_frictionless_two_parts.parallel):
+            r, v = r0.copy(), problem.velocity(np.zeros((problem.n_points, 3)))
+            info = build(body, data, offset, r, v, bounds, tol, sweeps, 10, nncg)
+            out.append((r, v, info))
+        (r_s, v_s, info_s), (r_p, v_p, info_p) = out
+        assert info_s == info_p and info_s[0] > 1
+        np.testing.assert_array_equal(r_p, r_s)
+        np.testing.assert_array_equal(v_p, v_s)
+
+
 def test_sides_split_the_bodies_at_the_median_height_of_the_points():
     """Bodies whose centre is at or above the median height of the contact points are side 1;
     the wall row is side 0."""

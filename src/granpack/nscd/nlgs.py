@@ -42,7 +42,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
+from granpack._numba import (MIN_PARALLEL_POINTS, atomic_add, atomic_cas, atomic_load, atomic_store, jit, prange,
+                             spin_pause, thread_count)
 from granpack.nscd.problem import (
     AIN,
     AIS,
@@ -287,62 +288,155 @@ def _momentum_update(body, data, r, v, before, direction, beta, start, stop):
         before[k] = r[k]
 
 
+#: spins (:func:`~granpack._numba.spin_pause`) the helper of the two-part sweeps makes with no
+#: part to take before it leaves the solve to the leader (:func:`_help`): about 1.4 ms on a
+#: 2-core x86-64 VM, some 25 times what the leader's points across take between two offers
+HELPER_SPINS = 1 << 16
+_WORD, _DONE = 0, 1  # the shared words of the two threads: the parts on offer, the parts swept
+
+
 @jit(parallel=True)
 def _solve_frictionless_two_parts(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg):
     """Numba: the sweeps of :func:`_solve_frictionless` (same contract) with the points in three
-    groups: the lower and the upper part of the pile, which share no body and are swept by two
-    threads at once, and the points across them.
+    groups: the lower and the upper part of the pile, which share no body and are swept at once
+    by two threads, and the points across them.
 
     A forward sweep takes the two parts at once, then the points across; a backward sweep the
     points across (backwards), then the two parts (backwards). The NNCG momentum after a backward
-    sweep is applied to the points across first, then to each part by its thread just before it
-    sweeps it forward (one launch of the threads per sweep). Each thread reads only bodies of its
-    own part or written before the launch, so the sweeps are those of :func:`_solve_frictionless`
-    on the points in the order lower, upper, across (up to the order of additions on the bodies
-    of the points across), whatever the number of threads. ``bounds`` ``(4,)``: group g is the
-    points ``bounds[g]..bounds[g+1]-1``. The wall (row N, zero inverse mass) may appear in both
-    parts: its velocity stays 0.
+    sweep is applied to the points across first, then to each part just before it is swept
+    forward. Each part is swept by one thread, which reads only bodies of its own part or written
+    before the part was offered, so the sweeps are those of :func:`_solve_frictionless` on the
+    points in the order lower, upper, across (up to the order of additions on the bodies of the
+    points across), whatever the number of threads and whichever thread sweeps which part.
+    ``bounds`` ``(4,)``: group g is the points ``bounds[g]..bounds[g+1]-1``. The wall (row N,
+    zero inverse mass) may appear in both parts: its velocity stays 0.
+
+    The threads are launched once per solve: one leads (:func:`_lead`: the points across, the
+    checks, the momentum) and offers the two parts of each sweep, the other (:func:`_help`) takes
+    what it can; the two meet through atomic words, without a system call. The serial build runs
+    the leader alone, which then sweeps both parts itself.
     """
     p = r.shape[0]
     if p == 0:
         return 0, 0.0, True
-    error = np.inf
     sums = np.zeros((3, 6))
     before = r.copy() if nncg else np.zeros(0)
     direction = np.zeros(p if nncg else 0)
+    task = np.zeros(4)  # the sweep on offer: forward, check, momentum, beta
+    shared = np.zeros(2, np.int64)
+    result = np.zeros(3)
+    for thread in prange(2):
+        if thread == 0:
+            sweeps, error, converged = _lead(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg,
+                                             sums, before, direction, task, shared)
+            result[0], result[1], result[2] = sweeps, error, converged  # written here: Numba's parfors do
+            # not see a called function's writes to an array of the kernel, and would read it unchanged
+        else:
+            _help(body, data, offset, r, v, bounds, sums, before, direction, task, shared)
+    return int(result[0]), result[1], result[2] != 0.0
+
+
+@jit
+def _lead(body, data, offset, r, v, bounds, tol, max_iterations, check_every, nncg, sums, before, direction, task,
+          shared):
+    """Numba: the loop of :func:`_solve_frictionless_two_parts`, offering each sweep's two parts
+    through ``shared`` and sweeping those the helper has not taken; ends by offering none (word
+    -1). Returns ``(sweeps, error, converged)``."""
+    error = np.inf
     previous = np.inf
     beta = 0.0
     momentum = False
+    offered = 0
+    sweeps, converged = max_iterations, False
     for it in range(max_iterations):
         check = (it + 1) % check_every == 0 or it + 1 == max_iterations
         forward = it % 2 == 0
         sums[:, :] = 0.0
+        task[0], task[1], task[2], task[3] = forward, check, momentum and forward, beta
         if forward:
             if momentum:
                 _momentum_update(body, data, r, v, before, direction, beta, bounds[2], bounds[3])
-            for g in prange(2):
-                if momentum:
-                    _momentum_update(body, data, r, v, before, direction, beta, bounds[g], bounds[g + 1])
-                _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], True, check, sums[g])
+            offered = _sweep_parts(body, data, offset, r, v, bounds, sums, before, direction, task, shared, offered)
             momentum = False
             _sweep(body, data, offset, r, v, bounds[2], bounds[3], True, check, sums[2])
         else:
             _sweep(body, data, offset, r, v, bounds[2], bounds[3], False, check, sums[2])
-            for g in prange(2):
-                _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], False, check, sums[g])
+            offered = _sweep_parts(body, data, offset, r, v, bounds, sums, before, direction, task, shared, offered)
         if check:
             error = _quad_error(sums[:, 0].sum(), sums[:, 1].sum(), sums[:, 2].sum(), sums[:, 3].sum(),
                                 sums[:, 4].sum(), sums[:, 5].sum())
             if error < tol:
-                return it + 1, error, True
+                sweeps, converged = it + 1, True
+                break
         if nncg and not forward:
-            norm = _momentum_norm(data, r, before, 0, p)
+            norm = _momentum_norm(data, r, before, 0, r.shape[0])
             beta = _momentum_factor(norm, previous, direction)
             previous = norm
             momentum = True
-    if momentum:  # the last sweep was backward: its momentum, as in _solve_frictionless
-        _momentum_update(body, data, r, v, before, direction, beta, 0, p)
-    return max_iterations, error, False
+    if momentum and not converged:  # the last sweep was backward: its momentum, as in _solve_frictionless
+        _momentum_update(body, data, r, v, before, direction, beta, 0, r.shape[0])
+    atomic_store(shared, _WORD, -1)
+    return sweeps, error, converged
+
+
+@jit
+def _sweep_parts(body, data, offset, r, v, bounds, sums, before, direction, task, shared, offered):
+    """Numba: offer the two parts of the sweep ``task`` (the ``offered``-th offer, counted from 0),
+    sweep those not taken, and wait until both are swept; returns the offers made."""
+    atomic_store(shared, _DONE, 0)
+    atomic_store(shared, _WORD, 4 * (offered + 1))  # the offer number, and the parts taken (none)
+    while True:
+        g = _take(shared)
+        if g < 0:
+            break
+        _sweep_part(g, body, data, offset, r, v, bounds, sums, before, direction, task)
+        atomic_add(shared, _DONE, 1)
+    while atomic_load(shared, _DONE) < 2:
+        spin_pause()
+    return offered + 1
+
+
+@jit
+def _help(body, data, offset, r, v, bounds, sums, before, direction, task, shared):
+    """Numba: the helper of :func:`_solve_frictionless_two_parts`: sweeps the parts it takes until
+    the leader offers none (word -1), or until it has spun :data:`HELPER_SPINS` times with
+    nothing to take (the leader is held up: it sweeps the parts alone from then on)."""
+    idle = 0
+    while idle < HELPER_SPINS:
+        g = _take(shared)
+        if g == -2:
+            return
+        if g < 0:
+            idle += 1
+            spin_pause()
+            continue
+        idle = 0
+        _sweep_part(g, body, data, offset, r, v, bounds, sums, before, direction, task)
+        atomic_add(shared, _DONE, 1)
+
+
+@jit(inline="always")
+def _take(shared):
+    """Numba: take a part of the offer in ``shared``: its index (0 or 1), -1 when none is left, -2
+    when the solve is over."""
+    while True:
+        word = atomic_load(shared, _WORD)
+        if word < 0:
+            return -2
+        if word == 0 or word % 4 >= 2:
+            return -1
+        if atomic_cas(shared, _WORD, word, word + 1):
+            return word % 4
+
+
+@jit(inline="always")
+def _sweep_part(g, body, data, offset, r, v, bounds, sums, before, direction, task):
+    """Numba: part g's share of the sweep ``task`` (forward, check, momentum, beta): the momentum
+    update (forward, when due), then the sweep."""
+    forward = task[0] != 0.0
+    if forward and task[2] != 0.0:
+        _momentum_update(body, data, r, v, before, direction, task[3], bounds[g], bounds[g + 1])
+    _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, task[1] != 0.0, sums[g])
 
 
 @jit
