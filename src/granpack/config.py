@@ -208,8 +208,8 @@ class PopulationConfig(_Model):
         "[[L/G, G/E, weight], ...] (weights: relative numbers of grains); one shape per row, each grain's row drawn "
         "from the seed.",
     )
-    aspect_lognormal: Annotated[Optional[tuple[_Pair, _Pair]], Strict(False), Field(validate_default=True)] = Field(
-        default=None,
+    aspect_lognormal: Annotated[Optional[tuple[_Pair, ...]], Strict(False), Field(validate_default=True)] = Field(
+        default=None, min_length=2, max_length=2,
         description="Pinacoid only, instead of `aspect`: aspect ratios varying grain by grain, ln(L/G) and ln(G/E) "
         "independent normals given as [[median L/G, standard deviation of ln(L/G)], [median G/E, standard deviation "
         "of ln(G/E)]], each truncated to ratios >= 1 and cut into `aspect_classes` classes of equal probability.",
