@@ -11,6 +11,7 @@ from granpack.analysis._base import AnalysisWarning, NotComputedError
 from granpack.analysis.coordination import Coordination
 from granpack.analysis.balance import Equilibrium
 from granpack.analysis.fit import ExponentialFit
+from granpack.analysis.grain_shapes import GrainShapes
 from granpack.analysis.homogeneity import Homogeneity
 from granpack.analysis.interpenetration import Interpenetration
 from granpack.analysis.order import Order
@@ -24,6 +25,7 @@ __all__ = [
     "Coordination",
     "Equilibrium",
     "ExponentialFit",
+    "GrainShapes",
     "Homogeneity",
     "Interpenetration",
     "NotComputedError",
