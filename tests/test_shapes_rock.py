@@ -213,3 +213,15 @@ def test_a_rock_population_packs_with_one_gsd_type_per_rock(tmp_path):
         assert np.array_equal(np.array(spec["vertices"]), shape.vertices)
     assert np.array_equal(np.bincount(frame.particles.typeid, minlength=3),
                           np.bincount(Mixture.from_config(cfg).choices[0], minlength=3))
+
+
+def test_make_shape_is_the_first_shape_of_every_kind_of_population(tmp_path):
+    trimesh.creation.box(extents=(1.0, 0.7, 0.4)).export(tmp_path / "one.stl")
+    one_file = load_config_dict(config({"shape": "mesh", "files": ["one.stl"]}), base_dir=tmp_path).populations[0]
+    one_row = load_config_dict(config({"shape": "pinacoid", "aspect_distribution": [[2.0, 1.5, 1.0]]})).populations[0]
+    rocks = load_config_dict(config({"shape": "rock", "shapes": 2})).populations[0]
+    for population in (one_file, one_row, rocks):
+        first = population.make_shapes()[0]
+        assert np.array_equal(population.make_shape().vertices, first.vertices)
+    assert aspect_ratios(one_row.make_shape()) == pytest.approx((2.0, 1.5), rel=1e-12)
+    assert one_file.make_shape().size == pytest.approx(1.0, rel=1e-12)

@@ -515,7 +515,7 @@ class PopulationConfig(_Model):
             ``Sphere(size)``, ``Pinacoid.from_size(size, *aspect)`` or
             ``polyhedron_of_size(vertices, size)``; the first shape of a population of several.
         """
-        if len(self.shape_weights) > 1 or self.shape == "rock" or self.size_definition != "circumscribed":
+        if self.shape in ("mesh", "rock") or self.aspect_classes_of is not None or self.size_definition != "circumscribed":
             return self.make_shapes()[0]
         size = self.size if self.grading is None else 1.0
         if self.shape == "sphere":
