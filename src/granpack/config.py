@@ -38,6 +38,8 @@ from pydantic import (BaseModel, ConfigDict, Field, PrivateAttr, Strict, Validat
 from granpack.errors import InputError
 from granpack.grading import Grading
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeError, Sphere, polyhedron_of_size
+from granpack.shapes.aspect_classes import DEFAULT_CLASSES_PER_RATIO, MAX_CLASSES, MAX_CLASSES_PER_RATIO
+from granpack.shapes.rock import DEFAULT_FACES, DEFAULT_ROUGHNESS, DEFAULT_SHAPES, MAX_FACES, MIN_FACES
 from granpack.shapes.sizes import SIZE_DEFINITIONS
 
 __all__ = [
@@ -203,7 +205,7 @@ class PopulationConfig(_Model):
         ge=0, le=1, description="Share of the total solid volume; the shares of all populations sum to 1."
     )
     aspect_distribution: Annotated[Optional[tuple[_Point, ...]], Strict(False), Field(validate_default=True)] = Field(
-        default=None, min_length=1, max_length=64,
+        default=None, min_length=1, max_length=MAX_CLASSES,
         description="Pinacoid only, instead of `aspect`: aspect ratios varying grain by grain, as a table of classes "
         "[[L/G, G/E, weight], ...] (weights: relative numbers of grains); one shape per row, each grain's row drawn "
         "from the seed.",
@@ -215,7 +217,7 @@ class PopulationConfig(_Model):
         "of ln(G/E)]], each truncated to ratios >= 1 and cut into `aspect_classes` classes of equal probability.",
     )
     aspect_classes: Annotated[Optional[int], Field(validate_default=True)] = Field(
-        default=None, ge=1, le=8,
+        default=None, ge=1, le=MAX_CLASSES_PER_RATIO,
         description="With `aspect_lognormal`: classes per ratio (a ratio of spread 0 has one), so up to "
         "aspect_classes^2 shapes; default 4.",
     )
@@ -250,7 +252,7 @@ class PopulationConfig(_Model):
         "order of `files` (each pattern's matches by name); default: equal numbers.",
     )
     faces: Annotated[Optional[int], Field(validate_default=True)] = Field(
-        default=None, ge=8, le=64,
+        default=None, ge=MIN_FACES, le=MAX_FACES,
         description="Rock only: the faces of each rock (it has 2 faces - 4 vertices); default 14 (24 vertices).",
     )
     shapes: Annotated[Optional[int], Field(validate_default=True)] = Field(
@@ -322,7 +324,7 @@ class PopulationConfig(_Model):
                 if value is not None:
                     raise ValueError("only allowed with aspect_lognormal")
                 return value
-            return 4 if value is None else value
+            return DEFAULT_CLASSES_PER_RATIO if value is None else value
         return value
 
     @field_validator("vertices")
@@ -406,7 +408,7 @@ class PopulationConfig(_Model):
             return value
         if value is not None or info.field_name == "seed":
             return value
-        return {"faces": 14, "shapes": 10, "roughness": 0.5}[info.field_name]
+        return {"faces": DEFAULT_FACES, "shapes": DEFAULT_SHAPES, "roughness": DEFAULT_ROUGHNESS}[info.field_name]
 
     @field_validator("name")
     @classmethod

@@ -21,10 +21,15 @@ import math
 import numpy as np
 from scipy.stats import truncnorm
 
-__all__ = ["table_classes", "lognormal_classes", "lognormal_quantiles", "MAX_CLASSES"]
+__all__ = ["table_classes", "lognormal_classes", "lognormal_quantiles", "MAX_CLASSES", "MAX_CLASSES_PER_RATIO",
+           "DEFAULT_CLASSES_PER_RATIO"]
 
-#: most classes of one population (each is a shape of the engine's tables)
+#: most classes of one population, rows of a table (each is a shape of the engine's tables)
 MAX_CLASSES = 64
+#: most classes per ratio of two lognormals (their product at most :data:`MAX_CLASSES`)
+MAX_CLASSES_PER_RATIO = 8
+#: classes per ratio of two lognormals by default (16 shapes)
+DEFAULT_CLASSES_PER_RATIO = 4
 
 
 def lognormal_quantiles(median: float, log_sd: float, classes: int) -> np.ndarray:

@@ -30,7 +30,8 @@ from scipy.spatial.transform import Rotation
 from granpack.shapes.base import ShapeError
 from granpack.shapes.polyhedron import ConvexPolyhedron
 
-__all__ = ["rock", "rock_library", "ROCK_STREAM", "MIN_FACES", "MAX_FACES"]
+__all__ = ["rock", "rock_library", "ROCK_STREAM", "MIN_FACES", "MAX_FACES", "DEFAULT_FACES", "DEFAULT_SHAPES",
+           "DEFAULT_ROUGHNESS"]
 
 #: the random stream of the rocks, apart from the run's
 ROCK_STREAM = 0x726F636B
@@ -38,6 +39,12 @@ ROCK_STREAM = 0x726F636B
 MIN_FACES = 8
 #: most faces of a rock (2F - 4 = 124 vertices; the narrow phase's cost grows with them)
 MAX_FACES = 64
+#: faces of a rock by default: 24 vertices, the ``max_vertices`` of grains from files
+DEFAULT_FACES = 14
+#: distinct rocks of a population by default
+DEFAULT_SHAPES = 10
+#: the normals' random step by default, in mean spacings
+DEFAULT_ROUGHNESS = 0.5
 #: draws of the normals tried before a rock is given up (a draw whose normals leave a direction
 #: uncut makes an unbounded intersection and is drawn again)
 _DRAWS = 100
@@ -64,8 +71,8 @@ def _cut_ellipsoid(normals: np.ndarray, semi_axes: np.ndarray) -> np.ndarray | N
     return corners[np.sort(ConvexHull(corners).vertices)]
 
 
-def rock(rng: np.random.Generator, aspect: tuple[float, float] = (1.0, 1.0), faces: int = 14,
-         roughness: float = 0.5, name: str = "rock") -> ConvexPolyhedron:
+def rock(rng: np.random.Generator, aspect: tuple[float, float] = (1.0, 1.0), faces: int = DEFAULT_FACES,
+         roughness: float = DEFAULT_ROUGHNESS, name: str = "rock") -> ConvexPolyhedron:
     """One rock of ``faces`` faces whose principal extents have the ratios ``aspect`` = (L/G, G/E),
     at circumscribed diameter 1 d (module docstring).
 
@@ -108,8 +115,8 @@ def rock(rng: np.random.Generator, aspect: tuple[float, float] = (1.0, 1.0), fac
     return body.scaled(1.0 / body.size)
 
 
-def rock_library(seed: int, count: int, aspect: tuple[float, float] = (1.0, 1.0), faces: int = 14,
-                 roughness: float = 0.5, name: str = "rock") -> tuple[ConvexPolyhedron, ...]:
+def rock_library(seed: int, count: int, aspect: tuple[float, float] = (1.0, 1.0), faces: int = DEFAULT_FACES,
+                 roughness: float = DEFAULT_ROUGHNESS, name: str = "rock") -> tuple[ConvexPolyhedron, ...]:
     """``count`` rocks (:func:`rock`), rock ``s`` drawn from the stream ``(seed, ROCK_STREAM, s)``
     and named ``f"{name}-{s}"``; each at circumscribed diameter 1 d."""
     return tuple(rock(np.random.default_rng([int(seed), ROCK_STREAM, s]), aspect, faces, roughness,
