@@ -179,7 +179,7 @@ def _one_error_line(err: str) -> str:
         (["campaign", "s.toml", "--out", "o", "--workers", "abc"], "'--workers'"),
         (["check"], "Missing argument 'CONFIG'"),
         (["analyze", "a", "b"], "unexpected extra argument"),
-        (["export", "d", "--format", "obj"], "--format must be one of vtk, png"),
+        (["export", "d", "--format", "dxf"], "--format must be one of vtk, png, stl, obj, ply"),
     ],
 )
 def test_usage_errors_are_one_line_and_exit_2(argv, expected, tmp_path, capsys, monkeypatch):
