@@ -196,3 +196,16 @@ def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh raises ImportError
     code, _, err = run_cli(["mesh", str(tmp_path), "--out", str(tmp_path / "m.msh")], capsys)
     assert code == 2 and err == 'error: granpack mesh needs gmsh (GPL, an optional extra): pip install "granpack[mesh]"'
+
+
+def test_a_gmsh_failure_is_one_line(gmsh):
+    from granpack.mesh._gmsh import _failure
+
+    gmsh.initialize()
+    try:
+        with pytest.raises(InputError) as info, _failure("could not mesh the box"):
+            gmsh.model.occ.fragment([(3, 99)], [(3, 98)])  # no such volumes
+    finally:
+        gmsh.finalize()
+    message = str(info.value)
+    assert message.startswith("gmsh could not mesh the box (") and "--gap" in message and "\n" not in message

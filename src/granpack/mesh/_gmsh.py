@@ -82,6 +82,17 @@ def _session(gmsh, threads: int):
         gmsh.finalize()
 
 
+@contextmanager
+def _failure(what: str):
+    """gmsh's own failure (an ``Exception`` with its last error) as one line that says what to change."""
+    try:
+        yield
+    except Exception as exc:  # gmsh raises plain Exception
+        reason = " ".join(str(exc).split()) or "no reason given"
+        raise InputError(f"gmsh {what} ({reason}); try a larger --gap, a smaller --size or a --box whose "
+                         f"planes do not graze grains") from None
+
+
 def _add_polyhedron(occ, vertices: np.ndarray, faces: list[np.ndarray], edges: np.ndarray) -> int:
     """An OpenCASCADE solid bounded by the planar polygons ``faces`` over ``vertices`` (world, d)."""
     points = [occ.addPoint(*v) for v in vertices]
@@ -164,7 +175,8 @@ def build_mesh(plan: MeshPlan, msh_path: Path | None = None) -> VolumeMesh:
 
         start = time.perf_counter()
         tools = [(3, t) for t in grains + shells]
-        _, pieces = occ.fragment([(3, box)], tools)
+        with _failure("could not cut the grains out of the box"):
+            _, pieces = occ.fragment([(3, box)], tools)
         occ.synchronize()
         timings["fragment"] = time.perf_counter() - start
         inside = {tag for _, tag in pieces[0]}
@@ -205,7 +217,8 @@ def build_mesh(plan: MeshPlan, msh_path: Path | None = None) -> VolumeMesh:
         if options.periodic:
             _set_periodic(gmsh, face_tags, plan.box, 10 * tol)
         start = time.perf_counter()
-        gmsh.model.mesh.generate(3)
+        with _failure("could not mesh the box"):
+            gmsh.model.mesh.generate(3)
         timings["mesh"] = time.perf_counter() - start
         if msh_path is not None:
             gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)

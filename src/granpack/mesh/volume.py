@@ -91,6 +91,7 @@ def mesh_report(plan: MeshPlan, mesh: VolumeMesh) -> dict:
         periodic_mismatch = float(np.abs(gap).max())
     used = np.unique(plan.instances.kind)
     return {
+        "length_unit": "d, the largest grain's circumscribed diameter",
         "box": list(plan.box),
         "full_width": plan.full_width,
         "periodic": plan.options.periodic,
