@@ -160,3 +160,29 @@ def test_cli_analyze_writes_analysis_json(tmp_path, capsys):
     assert exc.value.code == 0
     assert json.loads((tmp_path / "analysis.json").read_text())["coordination"]["Nc"] == 18.0
     assert "solid fraction" in capsys.readouterr().out
+
+
+def test_analyze_run_judges_with_the_runs_own_criteria(tmp_path):
+    """A run certified by looser criteria reads as it was certified: analysis.json's verdicts use
+    the run's [equilibrium] settings (config.toml), not the defaults; options given win."""
+    warnings.simplefilter("ignore", AnalysisWarning)  # a short column: bulk figures nan
+    from granpack.analysis.report import AnalysisOptions
+    from granpack.config import EquilibriumConfig
+    from granpack.equilibrium import EquilibriumCriteria, criteria_of
+
+    assert criteria_of(EquilibriumConfig()) == EquilibriumCriteria()  # the plain defaults are the config's
+    packing = sphere_column(3, 6)
+    point = int(np.argmax(packing.contacts.impulse[:, 2]))
+    packing.contacts.impulse[point, 2] *= 1.0001  # one grain off balance by a small force
+    write_packing(tmp_path / "final.gsd", packing)
+    force = Equilibrium().compute(packing).figures["max_net_force"]
+    assert 1e-4 < force < 1e-3  # off by the defaults (1e-4), within 1e-3
+    assert analyze_run(tmp_path)["equilibrium"]["force_ok"] is False  # no config: the defaults
+    (tmp_path / "config.toml").write_text("[equilibrium]\nforce_tolerance = 1e-3\nwall_tolerance = 1e-3\n")
+    judged = analyze_run(tmp_path)["equilibrium"]
+    assert judged["force_ok"] is True and judged["wall_ok"] is True
+    strict = analyze_run(tmp_path, AnalysisOptions(criteria=EquilibriumCriteria()))["equilibrium"]
+    assert strict["force_ok"] is False
+    (tmp_path / "config.toml").write_text("[equilibrium]\nforce_tolerance = -1\n")
+    with pytest.raises(InputError, match=r"config\.toml: cannot read the run's \[equilibrium\] settings"):
+        analyze_run(tmp_path)

@@ -55,6 +55,7 @@ from granpack.state import ParticleState
 
 __all__ = [
     "EquilibriumCriteria",
+    "criteria_of",
     "EquilibriumFields",
     "EquilibriumReport",
     "particle_balance",
@@ -85,6 +86,17 @@ class EquilibriumCriteria:
     kinetic_energy: float = 1e-8
     wall: float = 1e-4
     top_margin: float = 2.0
+
+
+def criteria_of(settings) -> EquilibriumCriteria:
+    """The criteria of a run: its config's ``[equilibrium]`` table
+    (:class:`granpack.config.EquilibriumConfig`: ``force_tolerance``, ``torque_tolerance``,
+    ``kinetic_tolerance``, ``wall_tolerance``). The only source of a run's criteria: the run is
+    certified and its analysis judged by the same ones. The defaults of
+    :class:`EquilibriumCriteria` are plain numbers (this module reads no config schema), held to
+    the config's by a test."""
+    return EquilibriumCriteria(force=settings.force_tolerance, torque=settings.torque_tolerance,
+                               kinetic_energy=settings.kinetic_tolerance, wall=settings.wall_tolerance)
 
 
 @dataclass(frozen=True)

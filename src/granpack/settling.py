@@ -34,7 +34,7 @@ import numpy as np
 
 from granpack.config import RunConfig
 from granpack.contact import ContactSet, Detector
-from granpack.equilibrium import EquilibriumCriteria, EquilibriumReport, check_equilibrium
+from granpack.equilibrium import EquilibriumReport, check_equilibrium, criteria_of
 from granpack.mixture import Mixture
 from granpack.nscd import StepParameters, advance, predict
 from granpack.nscd.step_policy import step_alert, step_reach
@@ -42,7 +42,7 @@ from granpack.packing import Packing
 from granpack.run_record import RunRecord, timeline_row
 from granpack.state import ParticleState
 
-__all__ = ["PHASES", "STATUS_AT_REST", "STATUS_NOT_AT_REST", "Observer", "Settling", "criteria_of", "shake",
+__all__ = ["PHASES", "STATUS_AT_REST", "STATUS_NOT_AT_REST", "Observer", "Settling", "shake",
            "step_parameters"]
 
 PHASES = ("collapse", "end game", "settle", "certify")
@@ -66,13 +66,6 @@ def step_parameters(config: RunConfig) -> StepParameters:
         recovery_slop=o.recovery_slop, recovery_rate=o.recovery_rate, recovery_speed=o.recovery_speed,
         parallel_points=points if points > 0 else 2**62, nncg=s.acceleration == "nncg",
     )
-
-
-def criteria_of(config: RunConfig) -> EquilibriumCriteria:
-    """The equilibrium tolerances of a run config."""
-    e = config.equilibrium
-    return EquilibriumCriteria(force=e.force_tolerance, torque=e.torque_tolerance,
-                               kinetic_energy=e.kinetic_tolerance, wall=e.wall_tolerance)
 
 
 class Observer(Protocol):
@@ -100,7 +93,7 @@ class Settling:
                  record: RunRecord):
         self.config, self.mixture, self.state, self.contacts, self.record = config, mixture, state, contacts, record
         self.params = step_parameters(config)
-        self.criteria = criteria_of(config)
+        self.criteria = criteria_of(config.equilibrium)
         h = self.params.time_step
         d_min = 2.0 * float(state.shapes.radius.min())
         d_max = 2.0 * float(state.shapes.radius.max())

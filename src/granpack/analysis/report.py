@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +34,11 @@ from granpack.analysis.order import Order
 from granpack.analysis.pair_correlation import PairCorrelation
 from granpack.analysis.size_classes import SizeClasses
 from granpack.analysis.solid_fraction import SolidFraction
-from granpack.equilibrium import EquilibriumCriteria
+from granpack.equilibrium import EquilibriumCriteria, criteria_of
 from granpack.errors import InputError
 from granpack.io.gsd import read_packing, shape_spec
 from granpack.io.json import write_json
+from granpack.io.run_folder import CONFIG_FILE
 from granpack.packing import Packing
 
 __all__ = ["AnalysisOptions", "analyze_packing", "analyze_run", "summary_rows"]
@@ -60,7 +61,9 @@ class AnalysisOptions:
             is the rank of those points.
         gap_tol: gap tolerance of the cross-check contact types, in d.
         rank_tol: rank tolerance of the contact types, in units of the smallest grain size.
-        criteria: equilibrium tolerances.
+        criteria: equilibrium tolerances; None: those of the run (:func:`analyze_run`, from the
+            run's ``[equilibrium]`` settings), else the defaults of
+            :class:`~granpack.equilibrium.EquilibriumCriteria`.
         sieves: sieve sizes (d) of the size classes of a packing of several sizes; default
             :data:`~granpack.analysis.size_classes.DEFAULT_CLASSES` classes from the smallest to
             the largest grain.
@@ -78,7 +81,7 @@ class AnalysisOptions:
     sieves: tuple[float, ...] | None = None
     gap_tol: float = 1e-4
     rank_tol: float = 1e-3
-    criteria: EquilibriumCriteria = field(default_factory=EquilibriumCriteria)
+    criteria: EquilibriumCriteria | None = None
 
 
 def _order_figures(order: Order, baseline: bool) -> dict:
@@ -275,15 +278,40 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
 def analyze_run(run_dir: str | os.PathLike, options: AnalysisOptions | None = None) -> dict:
     """Analyse ``run_dir/final.gsd`` and write ``run_dir/analysis.json`` atomically.
 
+    The packing's equilibrium is judged by the run's own criteria (its ``config.toml``'s
+    ``[equilibrium]`` table, :func:`~granpack.equilibrium.criteria_of`) unless ``options`` gives
+    others, so that a run certified by looser criteria reads as it was certified.
+
     Raises:
         InputError: ``run_dir`` is not a folder, or ``final.gsd`` is missing or unreadable.
     """
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise InputError(f"{run_dir}: not a run folder")
+    options = options or AnalysisOptions()
+    if options.criteria is None:
+        options = replace(options, criteria=_run_criteria(run_dir))
     result = analyze_packing(read_packing(run_dir / "final.gsd"), options)
     write_json(run_dir / "analysis.json", result)
     return result
+
+
+def _run_criteria(run_dir: Path) -> EquilibriumCriteria:
+    """The equilibrium criteria of the run in ``run_dir``: its resolved ``config.toml``'s
+    ``[equilibrium]`` table, or the defaults where the folder has no config (a packing written by
+    other means)."""
+    import tomllib
+
+    from granpack.config import EquilibriumConfig
+
+    path = run_dir / CONFIG_FILE
+    if not path.is_file():
+        return EquilibriumCriteria()
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8")).get("equilibrium", {})
+        return criteria_of(EquilibriumConfig.model_validate(table))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, ValueError) as exc:
+        raise InputError(f"{path}: cannot read the run's [equilibrium] settings ({exc})") from None
 
 
 def _bulk_region(bulk: dict, fmt) -> str:
