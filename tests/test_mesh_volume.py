@@ -191,6 +191,24 @@ def test_mesh_command(gmsh, rng, tmp_path, capsys):
     code, _, err = run_cli(["mesh", str(tmp_path / "nowhere"), "--out", str(tmp_path / "m.msh")], capsys)
     assert code == 2 and "final.gsd: file not found" in err
 
+    (tmp_path / "summary.json").write_text('{"status": "equilibrium"}')  # a run's own file is never replaced
+    code, _, err = run_cli(["mesh", str(tmp_path), "--out", str(tmp_path / "summary.msh")], capsys)
+    assert code == 2 and "its report would replace" in err and (tmp_path / "summary.json").read_text() == '{"status": "equilibrium"}'
+    # an earlier mesh's report is replaced with its mesh
+    code, *_ = run_cli(["mesh", str(tmp_path), "--out", str(tmp_path / "out" / "m.vtu"), "--box", "0", "0", "0.8", "3", "3",
+                        "2.2", "--size-factor", "0.5"], capsys)
+    assert code == 0
+
+
+def test_cli_defaults_are_the_library_ones():
+    import typer.main
+
+    from granpack.cli import app
+    from granpack.mesh.region import CURVATURE, SIZE_FACTOR
+
+    defaults = {p.name: p.default for p in typer.main.get_command(app).commands["mesh"].params}
+    assert defaults["size_factor"] == SIZE_FACTOR and defaults["curvature"] == CURVATURE
+
 
 def test_missing_extra_is_one_line(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "gmsh", None)  # import gmsh raises ImportError

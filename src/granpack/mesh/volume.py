@@ -36,10 +36,29 @@ TOLERANCE = 0.005
 
 
 def check_suffix(path: Path) -> str:
-    """The meshio format name of ``path``'s suffix; :class:`InputError` naming the allowed suffixes."""
+    """The meshio format name of ``path``'s suffix, once it is known that it can be written there.
+
+    Raises:
+        InputError: an unknown suffix (naming the allowed ones), ``.xdmf`` without h5py, or a report
+            ``path.json`` that would replace a file which is not an earlier mesh report.
+    """
     fmt = SUFFIXES.get(path.suffix.lower())
     if fmt is None:
         raise InputError(f"--out {path}: unknown suffix {path.suffix or '(none)'!r}; one of {', '.join(SUFFIXES)}")
+    if fmt == "xdmf":
+        try:
+            import h5py  # noqa: F401
+        except ImportError:
+            raise InputError(f'--out {path}: XDMF needs h5py (in the mesh extra): pip install "granpack[mesh]"') from None
+    report = path.with_suffix(".json")
+    if report.exists():
+        try:
+            earlier = json.loads(report.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            earlier = None
+        if not (isinstance(earlier, dict) and earlier.get("file") == path.name):
+            raise InputError(f"--out {path}: its report would replace {report}, which is not this mesh's report; "
+                             f"choose another name")
     return fmt
 
 
