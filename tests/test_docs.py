@@ -93,3 +93,33 @@ def test_rst_roles_and_math_become_markdown():
     assert "`x`" in out and "``x``" not in out
     assert "$$\na = b\n$$" in out
     assert "Example:\n\n```\nf(1)\n```" in out
+
+
+def _demo_figures():
+    spec = importlib.util.spec_from_file_location("granpack_demo_figures", ROOT / "benchmarks" / "demo_figures.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+ROOT = HOOKS.parents[1]
+
+
+def test_the_demo_figures_quoted_by_the_pages_are_those_of_its_recorded_run():
+    """README.md and docs/getting-started.md quote the demo's cap, rest time, solid fraction and
+    cost between markers that ``benchmarks/demo_figures.py`` fills from a run; the cap must be the
+    packaged demo config's, and every marked figure the recorded run's."""
+    import json
+
+    from granpack.cli import demo_config
+
+    demo = _demo_figures()
+    record = json.loads(demo.RECORD.read_text(encoding="utf-8"))
+    assert record["max_time"] == f"{demo_config().equilibrium.max_time:g}"
+    for page in demo.PAGES:
+        text = page.read_text(encoding="utf-8")
+        marked = demo.MARKER.findall(text)
+        assert {"rest_time", "phi", "cpu_seconds"} <= {key for key, _ in marked}, page.name
+        for key, value in marked:
+            assert value == record[key], f"{page.name}: demo:{key} reads {value}, the recorded run {record[key]}"
+    assert demo.fill("<!-- demo:phi -->0.1<!-- /demo -->", {"phi": "0.675"}) == "<!-- demo:phi -->0.675<!-- /demo -->"
