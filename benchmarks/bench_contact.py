@@ -93,6 +93,14 @@ def build_dense(n: int, small_volume_share: float, rng: np.random.Generator, swe
     kind = np.r_[np.zeros(n_large, np.int64), np.ones(n_small, np.int64)]
     state = ParticleState(box=box, shapes=ShapeTable.from_shapes([large, small]), kind=kind,
                           population=kind.copy(), position=box.wrap(pos), quaternion=random_quaternions(n, rng))
+    return push_apart(state, sweeps)
+
+
+def push_apart(state: ParticleState, sweeps: int = 100) -> ParticleState:
+    """``state`` with overlapping grains pushed apart along their contact normals (half the
+    penetration depth each, weighted by the other grain's volume; grains below the wall lifted),
+    for at most ``sweeps`` sweeps (in place; returned)."""
+    box = state.box
     volume = state.shapes.volume[state.kind]
     for _ in range(sweeps):
         cs = detect(state, 0.0)
