@@ -313,12 +313,14 @@ def demo(
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace the run that OUT holds (analysis, figures, exports too)."),
 ) -> None:
     """A small complete packing (about 300 isometric pinacoids), poured, settled and analysed."""
+    from granpack.io.run_folder import ANALYSIS_FILE, FINAL_FILE, SUMMARY_FILE
+
     config = demo_config()
     typer.echo(f"granpack demo: {config.n_particles} isometric pinacoids in a {config.lateral_size:g} d x "
                f"{config.lateral_size:g} d periodic cell -> {out}/")
     _run_and_report(config, out, resume=resume, overwrite=overwrite, again=f"granpack demo --out {out}")
     analyze(out, json_output=False)
-    typer.echo(f"files: {out / 'final.gsd'} (OVITO), {out / 'summary.json'}, {out / 'analysis.json'}; "
+    typer.echo(f"files: {out / FINAL_FILE} (OVITO), {out / SUMMARY_FILE}, {out / ANALYSIS_FILE}; "
                f"ParaView: granpack export {out} --format vtk; figures: granpack figures {out}")
 
 
@@ -386,7 +388,9 @@ def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: 
     failing = [name for key, name in (("force_ok", "net force"), ("torque_ok", "net torque"), ("energy_ok", "kinetic energy"),
                                        ("wall_ok", "wall force")) if not eq.get(key)]
     if failing:
-        typer.echo(f"criteria not met at the end: {', '.join(failing)} (values in {out / 'summary.json'}, 'equilibrium')")
+        from granpack.io.run_folder import SUMMARY_FILE
+
+        typer.echo(f"criteria not met at the end: {', '.join(failing)} (values in {out / SUMMARY_FILE}, 'equilibrium')")
     return summary
 
 
@@ -422,6 +426,7 @@ def run(
     the checkpoint (exit status 130).
     """
     from granpack.config import load_config
+    from granpack.io.run_folder import CONFIG_FILE, FINAL_FILE, SUMMARY_FILE
 
     if _is_campaign_file(config):
         raise InputError(f"{config}: a campaign file ([[mixtures]]), not a run config: run it with "
@@ -435,10 +440,10 @@ def run(
                               layout=tuple(_layout_warnings(_toml_of(config))),
                               source=f"{config}" + (f" with --seed {seed}" if seed is not None else ""))
     if json_output:
-        _print_json({"out": str(out), "files": {name: str(out / name) for name in ("config.toml", "final.gsd", "summary.json")},
+        _print_json({"out": str(out), "files": {name: str(out / name) for name in (CONFIG_FILE, FINAL_FILE, SUMMARY_FILE)},
                      "summary": summary})
         return
-    typer.echo(f"files: {out / 'final.gsd'}, {out / 'summary.json'}; next: granpack analyze {out}")
+    typer.echo(f"files: {out / FINAL_FILE}, {out / SUMMARY_FILE}; next: granpack analyze {out}")
 
 
 @app.command()
@@ -451,6 +456,7 @@ def analyze(
 
     from granpack.analysis import AnalysisWarning
     from granpack.analysis.report import analyze_run, summary_rows
+    from granpack.io.run_folder import ANALYSIS_FILE
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AnalysisWarning)  # printed below, one line each
@@ -458,9 +464,9 @@ def analyze(
     for message in result["warnings"]:
         _note(f"warning: {message}")
     if json_output:
-        _print_json({"run_dir": str(run_dir), "file": str(run_dir / "analysis.json"), "analysis": result})
+        _print_json({"run_dir": str(run_dir), "file": str(run_dir / ANALYSIS_FILE), "analysis": result})
         return
-    table = Table(title=f"{run_dir / 'analysis.json'}")
+    table = Table(title=f"{run_dir / ANALYSIS_FILE}")
     table.add_column("quantity")
     table.add_column("value", justify="right")
     for name, value in summary_rows(result):
@@ -488,6 +494,7 @@ def campaign(
     when interrupted (Ctrl-C; finished runs and checkpoints are kept).
     """
     from granpack.campaign import load_campaign, run_campaign
+    from granpack.io.run_folder import RUNS_TABLE, SUMMARY_TABLE
 
     if _is_run_config(spec):
         raise InputError(f"{spec}: a run config ([[populations]]), not a campaign file: run it with "
@@ -507,10 +514,10 @@ def campaign(
     typer.echo(
         f"{report.n_runs} runs{chosen}: {report.n_done} done ({report.n_skipped} already finished; "
         f"{report.n_at_rest} at rest, {report.n_done - report.n_at_rest} stopped at the time cap), "
-        f"{report.n_failed} failed; tables in {out / 'runs.csv'} and {out / 'summary.csv'}"
+        f"{report.n_failed} failed; tables in {out / RUNS_TABLE} and {out / SUMMARY_TABLE}"
     )
     if report.n_failed:
-        raise _Stop(f"error: {report.n_failed} run(s) failed; see the 'error' column of {out / 'runs.csv'}", 1)
+        raise _Stop(f"error: {report.n_failed} run(s) failed; see the 'error' column of {out / RUNS_TABLE}", 1)
 
 
 @app.command()
@@ -548,8 +555,9 @@ def export(
     if images and format not in SURFACE_FORMATS:
         raise InputError(f"--images goes with --format {', '.join(SURFACE_FORMATS)} (got --format {format})")
     from granpack.io.gsd import read_packing
+    from granpack.io.run_folder import FINAL_FILE, PICTURE_FILE
 
-    packing = read_packing(run_dir / "final.gsd")
+    packing = read_packing(run_dir / FINAL_FILE)
     if format in SURFACE_FORMATS:
         from granpack.io.atomic import output_folder
         from granpack.mesh.surfaces import write_surfaces
@@ -566,7 +574,7 @@ def export(
     else:
         from granpack.figures import render_packing, save_figure
 
-        paths = save_figure(render_packing(packing), run_dir, "packing", formats=("png",))
+        paths = save_figure(render_packing(packing), run_dir, Path(PICTURE_FILE).stem, formats=("png",))
     typer.echo("wrote " + ", ".join(str(p) for p in paths))
 
 
@@ -588,6 +596,7 @@ def mesh(
     """A conforming tetrahedral mesh of the grains (shrunk apart by --gap) and the matrix in a box, for finite elements (needs the mesh extra: gmsh)."""
     from granpack.io.atomic import output_folder
     from granpack.io.gsd import read_packing
+    from granpack.io.run_folder import FINAL_FILE
     from granpack.mesh.region import MeshOptions
     from granpack.mesh.volume import TOLERANCE, check_suffix, require_gmsh, write_mesh
 
@@ -595,7 +604,7 @@ def mesh(
     require_gmsh()
     options = MeshOptions(box=box, gap=gap, size=size, size_factor=size_factor, curvature=curvature, itz=itz,
                           periodic=periodic, grain_groups=grain_groups, threads=threads)
-    packing = read_packing(run_dir / "final.gsd")
+    packing = read_packing(run_dir / FINAL_FILE)
     output_folder(out.parent, "--out")
     paths, report = write_mesh(out, packing, options)
     fraction = report["aggregate_fraction"]

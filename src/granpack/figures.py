@@ -44,6 +44,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
 from granpack.errors import InputError
 from granpack.io.atomic import atomic_path
+from granpack.io.run_folder import ANALYSIS_FILE, CONFIG_FILE, FINAL_FILE, RUNS_TABLE
 from granpack.io.vtk import grain_surfaces
 from granpack.packing import Packing
 
@@ -198,7 +199,7 @@ def render_packing(
 
 
 def _read_analysis(run_dir: Path) -> dict:
-    path = run_dir / "analysis.json"
+    path = run_dir / ANALYSIS_FILE
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
@@ -325,7 +326,7 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
         ax.legend(title="population")
         written += save_figure(fig, out, "homogeneity")
 
-    final = run_dir / "final.gsd"
+    final = run_dir / FINAL_FILE
     packing = read_packing(final) if final.is_file() else None
     if "size_classes" not in analysis:
         written.skipped["grading"] = "the grains have one size"
@@ -351,7 +352,7 @@ def _grading_figure(run_dir: Path, analysis: dict, packing) -> Figure:
     state = packing.state
     size, volume = 2.0 * state.radius, state.mass
     grid = np.geomspace(size.min(), size.max(), 200)
-    config_path = run_dir / "config.toml"
+    config_path = run_dir / CONFIG_FILE
     if config_path.is_file():
         config = load_config(config_path)
         graded = [p for p in config.populations if p.grading is not None]
@@ -389,9 +390,9 @@ def _grading_figure(run_dir: Path, analysis: dict, packing) -> Figure:
 
 
 def _read_runs(campaign_dir: Path) -> pd.DataFrame:
-    path = campaign_dir / "runs.csv"
+    path = campaign_dir / RUNS_TABLE
     if not path.is_file():
-        raise InputError(f"{campaign_dir}: no runs.csv (not a campaign folder; run `granpack campaign` first)")
+        raise InputError(f"{campaign_dir}: no {RUNS_TABLE} (not a campaign folder; run `granpack campaign` first)")
     try:
         runs = pd.read_csv(path)
     except (OSError, ValueError) as exc:
@@ -747,10 +748,11 @@ def make_figures(folder: str | Path, mixtures: Iterable[str] | None = None) -> F
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: no such folder")
-    if (folder / "runs.csv").is_file():
+    if (folder / RUNS_TABLE).is_file():
         return campaign_figures(folder, mixtures)
     if mixtures:
-        raise InputError(f"--mixture applies to campaign folders only ({folder} has no runs.csv)")
-    if not (folder / "analysis.json").is_file():
-        raise InputError(f"{folder}: neither a campaign folder (runs.csv) nor an analysed run folder (analysis.json)")
+        raise InputError(f"--mixture applies to campaign folders only ({folder} has no {RUNS_TABLE})")
+    if not (folder / ANALYSIS_FILE).is_file():
+        raise InputError(f"{folder}: neither a campaign folder ({RUNS_TABLE}) nor an analysed run folder "
+                         f"({ANALYSIS_FILE})")
     return run_figures(folder)

@@ -38,7 +38,7 @@ from granpack.equilibrium import EquilibriumCriteria, criteria_of
 from granpack.errors import InputError
 from granpack.io.gsd import read_packing, shape_spec
 from granpack.io.json import write_json
-from granpack.io.run_folder import CONFIG_FILE
+from granpack.io.run_folder import ANALYSIS_FILE, CONFIG_FILE, FINAL_FILE
 from granpack.packing import Packing
 
 __all__ = ["AnalysisOptions", "analyze_packing", "analyze_run", "summary_rows"]
@@ -291,8 +291,8 @@ def analyze_run(run_dir: str | os.PathLike, options: AnalysisOptions | None = No
     options = options or AnalysisOptions()
     if options.criteria is None:
         options = replace(options, criteria=_run_criteria(run_dir))
-    result = analyze_packing(read_packing(run_dir / "final.gsd"), options)
-    write_json(run_dir / "analysis.json", result)
+    result = analyze_packing(read_packing(run_dir / FINAL_FILE), options)
+    write_json(run_dir / ANALYSIS_FILE, result)
     return result
 
 

@@ -49,8 +49,6 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from granpack.analysis._base import AnalysisWarning
 from granpack.campaign.spec import CampaignSpec, RunSpec
 from granpack.campaign.store import (
-    ANALYSIS_FILE,
-    SUMMARY_FILE,
     clear_error,
     is_finished,
     read_task,
@@ -63,6 +61,15 @@ from granpack.campaign.store import (
 from granpack.config import load_config_dict
 from granpack.errors import InputError
 from granpack.io.atomic import output_folder
+from granpack.io.run_folder import (
+    ANALYSIS_FILE,
+    CAMPAIGN_SPEC_FILE,
+    CONFIG_FILE,
+    FINAL_FILE,
+    PROGRESS_FILE,
+    RUN_FILES,
+    SUMMARY_FILE,
+)
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -76,7 +83,6 @@ _WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_T
 _PROGRESS_SECONDS = 2.0  # longest wait between two refreshes of the progress line
 #: wall-clock seconds between two rounds of status lines of the runs in progress
 _STATUS_SECONDS = 600.0
-_FINAL_FILE = "final.gsd"
 _CHECKPOINT_GLOB = "checkpoint*"
 #: held by a task while it simulates and analyses: the runs a worker process is given at once (a
 #: worker with several threads) take turns, since the parallel kernels of one process share one
@@ -110,7 +116,7 @@ class CampaignReport:
 
 def _clear_outputs(run_dir: Path) -> None:
     """Remove the outputs of a run made for another config (so none of them is reused)."""
-    for name in (ANALYSIS_FILE, SUMMARY_FILE, _FINAL_FILE):
+    for name in (ANALYSIS_FILE, SUMMARY_FILE, FINAL_FILE):
         (run_dir / name).unlink(missing_ok=True)
     for checkpoint in run_dir.glob(_CHECKPOINT_GLOB):
         if checkpoint.is_file():
@@ -138,7 +144,7 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
         from granpack.simulation import run_packing
 
         if task_matches(run_dir, run):
-            if (run_dir / SUMMARY_FILE).is_file() and (run_dir / _FINAL_FILE).is_file():
+            if (run_dir / SUMMARY_FILE).is_file() and (run_dir / FINAL_FILE).is_file():
                 action = "analysed"
             elif any(run_dir.glob(_CHECKPOINT_GLOB)):
                 action = "resumed"
@@ -282,8 +288,6 @@ def status_line(out_dir: Path, run: RunSpec, since: float | None = None) -> str 
     """``running <mixture>/seed-<s>: <the last line of its progress.log>``, or None before the
     run has written one (a run still pouring its first grains) or, with ``since`` (seconds since
     the epoch), one since then (a task waiting for a worker, whose log is an earlier call's)."""
-    from granpack.io.run_folder import PROGRESS_FILE
-
     path = Path(out_dir) / run.folder / PROGRESS_FILE
     try:
         if since is not None and path.stat().st_mtime < since:
@@ -388,7 +392,7 @@ def changed_runs(out_dir: Path, runs: Iterable[RunSpec]) -> list[RunSpec]:
     changed = []
     for run in runs:
         run_dir = out_dir / run.folder
-        work = [name for name in (ANALYSIS_FILE, SUMMARY_FILE, _FINAL_FILE) if (run_dir / name).is_file()]
+        work = [name for name in (ANALYSIS_FILE, SUMMARY_FILE, FINAL_FILE) if (run_dir / name).is_file()]
         if (work or any(run_dir.glob(_CHECKPOINT_GLOB))) and read_task(run_dir) is not None and not task_matches(run_dir, run):
             changed.append(run)
     return changed
@@ -397,8 +401,6 @@ def changed_runs(out_dir: Path, runs: Iterable[RunSpec]) -> list[RunSpec]:
 def _check_folder(out_dir: Path, runs: tuple[RunSpec, ...], overwrite: bool) -> None:
     """Refuse a folder that holds a single run, or runs of another config without ``overwrite``
     (then remove the stale campaign figures)."""
-    from granpack.io.run_folder import CONFIG_FILE, RUN_FILES
-
     if (out_dir / CONFIG_FILE).is_file() and any((out_dir / name).is_file() for name in RUN_FILES):
         raise InputError(f"--out {out_dir}: holds a single run (granpack run); a campaign goes into a folder of its own")
     changed = changed_runs(out_dir, runs)
@@ -459,7 +461,7 @@ def run_campaign(
     _check_folder(out_dir, selected, overwrite)
     output_folder(out_dir)
     if spec.source_text:
-        (out_dir / "campaign.toml").write_text(spec.source_text, encoding="utf-8")
+        (out_dir / CAMPAIGN_SPEC_FILE).write_text(spec.source_text, encoding="utf-8")
     todo = [run for run in selected if not is_finished(out_dir, run)]
     n_skipped = len(selected) - len(todo)
     errors: dict[Path, str] = {}

@@ -36,6 +36,7 @@ from pandas.api.types import is_numeric_dtype
 
 from granpack.campaign.spec import RunSpec
 from granpack.io.atomic import atomic_path, write_text_atomic
+from granpack.io.run_folder import ANALYSIS_FILE, RUNS_PARQUET, RUNS_TABLE, SUMMARY_FILE, SUMMARY_TABLE
 
 __all__ = [
     "ANALYSIS_KEYS",
@@ -53,8 +54,6 @@ __all__ = [
     "write_tables",
 ]
 
-ANALYSIS_FILE = "analysis.json"
-SUMMARY_FILE = "summary.json"
 TASK_FILE = "task.json"
 ERROR_FILE = "error.txt"
 
@@ -320,9 +319,9 @@ def write_tables(out_dir: Path, runs: pd.DataFrame) -> pd.DataFrame:
     out_dir = Path(out_dir)
     summary = summary_table(runs)
     for name, write in (
-        ("runs.csv", lambda p: runs.to_csv(p, index=False)),
-        ("runs.parquet", lambda p: runs.to_parquet(p, index=False)),
-        ("summary.csv", lambda p: summary.to_csv(p, index=False)),
+        (RUNS_TABLE, lambda p: runs.to_csv(p, index=False)),
+        (RUNS_PARQUET, lambda p: runs.to_parquet(p, index=False)),
+        (SUMMARY_TABLE, lambda p: summary.to_csv(p, index=False)),
     ):
         with atomic_path(out_dir / name) as tmp:
             write(tmp)

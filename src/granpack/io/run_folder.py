@@ -1,5 +1,8 @@
 """The rules of a run folder: which files make it hold a run, and who may write there.
 
+The names of the files granpack writes into a run folder and into a campaign folder are declared
+here, once; every other module takes them from here.
+
 A folder holds a run when it has any of :data:`RUN_FILES`; a run goes on there only when told
 (resume), replaces it only when told (overwrite), and never replaces a ``config.toml`` that is
 not a granpack run's own. A campaign's folder (:data:`CAMPAIGN_FILES`) takes no run.
@@ -15,7 +18,8 @@ from granpack.io.atomic import output_folder
 from granpack.io.gsd import read_packing
 
 __all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE", "TIMELINE_FILE",
-           "PROGRESS_FILE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
+           "PROGRESS_FILE", "ANALYSIS_FILE", "PICTURE_FILE", "CAMPAIGN_SPEC_FILE", "RUNS_TABLE", "RUNS_PARQUET",
+           "SUMMARY_TABLE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
            "config_differences", "clear_run", "claim_folder"]
 
 CONFIG_FILE = "config.toml"
@@ -26,13 +30,25 @@ TRAJECTORY_FILE = "trajectory.gsd"
 TIMELINE_FILE = "timeline.csv"
 #: the progress lines and notes of a run with ``progress="log"`` (a campaign's runs), appended
 PROGRESS_FILE = "progress.log"
+#: the analysis of a run (``granpack analyze``, :func:`granpack.analysis.report.analyze_run`)
+ANALYSIS_FILE = "analysis.json"
+#: the rendered picture of a run's final state (``granpack export --format png``)
+PICTURE_FILE = "packing.png"
+
+#: a campaign folder's copy of the campaign file it was run from
+CAMPAIGN_SPEC_FILE = "campaign.toml"
+#: a campaign folder's table of its runs, as CSV and as Parquet (:mod:`granpack.campaign.store`)
+RUNS_TABLE = "runs.csv"
+RUNS_PARQUET = "runs.parquet"
+#: a campaign folder's table of its mixtures (means and deviations over the replicas)
+SUMMARY_TABLE = "summary.csv"
 
 #: files of a run folder that make it "hold a run" (see :func:`claim_folder`): the run's own
 #: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
-RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, "analysis.json",
-             "packing.png")
+RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, ANALYSIS_FILE,
+             PICTURE_FILE)
 #: files that make a folder a campaign's (``granpack campaign`` writes them): no run goes there
-CAMPAIGN_FILES = ("campaign.toml", "runs.csv", "summary.csv")
+CAMPAIGN_FILES = (CAMPAIGN_SPEC_FILE, RUNS_TABLE, SUMMARY_TABLE)
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
 RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",), "surfaces": (".stl", ".obj", ".ply")}
@@ -177,7 +193,7 @@ def claim_folder(out_dir: Path, config_text: str, *, resume: bool, overwrite: bo
         return False
     if present and not overwrite:
         if finished:
-            what = "a finished run (final.gsd, summary.json): --resume returns it as it is, " + replace_hint
+            what = f"a finished run ({FINAL_FILE}, {SUMMARY_FILE}): --resume returns it as it is, " + replace_hint
         elif checkpoint.is_file():
             what = (f"an unfinished run (its checkpoint{checkpoint_when(checkpoint)}): --resume continues it, "
                     + replace_hint)
