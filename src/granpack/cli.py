@@ -586,7 +586,7 @@ def mesh(
         None, "--box", metavar="X0 Y0 Z0 X1 Y1 Z1", help="The region (d); default: the cell's full width over the bulk's height."),
     size: Optional[float] = typer.Option(None, "--size", metavar="H", help="Largest element size (d); default: --size-factor times the smallest grain."),
     size_factor: float = typer.Option(0.2, "--size-factor", metavar="F", help="Largest element size relative to the smallest grain's size."),
-    curvature: int = typer.Option(48, "--curvature", metavar="N", help="Elements per turn on spheres (48: a sphere's volume within 0.5 %)."),
+    curvature: int = typer.Option(60, "--curvature", metavar="N", help="Elements per turn on spheres (60: a sphere's volume within 0.5 %)."),
     gap: Optional[float] = typer.Option(None, "--gap", metavar="G", help="Clearance the shrink opens between touching grains (d); default 0.02 times the smallest grain."),
     itz: float = typer.Option(0.0, "--itz", metavar="T", help="Thickness of an ITZ shell around every grain (d; 0: none)."),
     periodic: bool = typer.Option(False, "--periodic", help="Matching nodes on the opposite x and y faces (the cell's full width)."),

@@ -40,7 +40,7 @@ def check_suffix(path: Path) -> str:
 
     Raises:
         InputError: an unknown suffix (naming the allowed ones), ``.xdmf`` without h5py, or a report
-            ``path.json`` that would replace a file which is not an earlier mesh report.
+            ``path.json`` that would replace a file which is not a mesh report.
     """
     fmt = SUFFIXES.get(path.suffix.lower())
     if fmt is None:
@@ -56,8 +56,8 @@ def check_suffix(path: Path) -> str:
             earlier = json.loads(report.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             earlier = None
-        if not (isinstance(earlier, dict) and earlier.get("file") == path.name):
-            raise InputError(f"--out {path}: its report would replace {report}, which is not this mesh's report; "
+        if not (isinstance(earlier, dict) and {"file", "aggregate_fraction", "checks"} <= set(earlier)):
+            raise InputError(f"--out {path}: its report would replace {report}, which is not a mesh report; "
                              f"choose another name")
     return fmt
 
