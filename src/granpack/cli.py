@@ -598,7 +598,7 @@ def mesh(
     from granpack.io.gsd import read_packing
     from granpack.io.run_folder import FINAL_FILE
     from granpack.mesh.region import MeshOptions
-    from granpack.mesh.volume import TOLERANCE, check_suffix, require_gmsh, write_mesh
+    from granpack.mesh.volume import MEAN_GAMMA, TOLERANCE, check_suffix, require_gmsh, write_mesh
 
     check_suffix(out)
     require_gmsh()
@@ -614,7 +614,8 @@ def mesh(
                f"quality min {report['quality']['min_gamma']:.3f}, mean {report['quality']['mean_gamma']:.3f}")
     failed = [name for name, ok in report["checks"].items() if ok is False]
     if failed:
-        _note(f"checks not met: {', '.join(failed)} (within {100 * TOLERANCE:g} %; values in {out.with_suffix('.json')})")
+        _note(f"checks not met: {', '.join(failed)} (volumes within {100 * TOLERANCE:g} %, mean quality at least "
+              f"{MEAN_GAMMA:g}; values in {out.with_suffix('.json')})")
 
 
 def _one_line(text: str) -> str:

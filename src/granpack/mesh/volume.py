@@ -27,12 +27,14 @@ from granpack.mesh._gmsh import PHASES, VolumeMesh, build_mesh, require_gmsh
 from granpack.mesh.region import MeshOptions, MeshPlan, plan_mesh
 from granpack.packing import Packing
 
-__all__ = ["SUFFIXES", "TOLERANCE", "check_suffix", "require_gmsh", "mesh_packing", "tetra_volumes", "mesh_report", "write_mesh"]
+__all__ = ["SUFFIXES", "TOLERANCE", "MEAN_GAMMA", "check_suffix", "require_gmsh", "mesh_packing", "tetra_volumes", "mesh_report", "write_mesh"]
 
 #: the mesh formats, by file suffix
 SUFFIXES = {".msh": "gmsh", ".inp": "abaqus", ".xdmf": "xdmf", ".vtu": "vtu"}
 #: relative tolerance of the checks in the report (aggregate fraction, each grain's volume)
 TOLERANCE = 0.005
+#: the mean quality the report checks for: gmsh's gamma averaged over the tetrahedra (1: all regular)
+MEAN_GAMMA = 0.3
 
 
 def check_suffix(path: Path) -> str:
@@ -87,7 +89,8 @@ def mesh_report(plan: MeshPlan, mesh: VolumeMesh) -> dict:
     ``meshed / exact - 1``; ``before_shrink`` the packing's own. ``grain_volume_error``: the largest
     ``|meshed - exact| / V`` over the grains, ``V`` the whole shrunk grain's volume (full width: every
     grain in the box, cut or not, so a cap the box cuts off is held to its grain's accuracy, not to a
-    relative one its few facets cannot reach; otherwise the grains wholly inside). ``checks``: each within :data:`TOLERANCE`, and no tetrahedron of volume <= 0.
+    relative one its few facets cannot reach; otherwise the grains wholly inside). ``checks``: each within :data:`TOLERANCE`, no tetrahedron of volume <= 0 (nor SICN <= 0), a mean gamma of
+    at least :data:`MEAN_GAMMA`.
     """
     volume = tetra_volumes(mesh.points, mesh.tetra)
     by_phase = {name: float(volume[mesh.phase == code].sum()) for name, code in PHASES.items()}
@@ -143,6 +146,7 @@ def mesh_report(plan: MeshPlan, mesh: VolumeMesh) -> dict:
             "aggregate_fraction": bool(abs(fraction_error) <= TOLERANCE) if math.isfinite(fraction_error) else None,
             "grain_volumes": bool(grain_error <= TOLERANCE),
             "positive_volumes": bool(volume.min() > 0 and mesh.sicn.min() > 0),
+            "mean_quality": bool(mesh.gamma.mean() >= MEAN_GAMMA),
         },
         "seconds": mesh.timings,
     }
