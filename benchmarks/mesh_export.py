@@ -11,7 +11,7 @@ Packing: ``RUN_DIR/final.gsd`` of a finished run, e.g. the demo's (300 isometric
 
 Usage::
 
-    python benchmarks/mesh_export.py RUN_DIR [--out FOLDER] [--periodic] [--size-factor F] [--itz T] [--tile K] [--picture PNG]
+    python benchmarks/mesh_export.py RUN_DIR [--out FOLDER] [--periodic] [--size-factor F] [--itz T] [--tile K] [--box X0 Y0 Z0 X1 Y1 Z1] [--picture PNG]
 
 ``--tile K`` meshes the packing repeated K x K times across its periodic cell (a packing at rest
 too, K^2 times the grains, the same overlaps), for the cost of larger boxes without a longer run.
@@ -96,6 +96,7 @@ def main() -> None:
     parser.add_argument("--itz", type=float, default=0.0)
     parser.add_argument("--picture", type=Path, default=None)
     parser.add_argument("--tile", type=int, default=1)
+    parser.add_argument("--box", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"))
     args = parser.parse_args()
     packing = read_packing(args.run_dir / "final.gsd")
     if args.tile > 1:
@@ -107,7 +108,8 @@ def main() -> None:
         _, bodies = write_surfaces(packing, out / "grains.stl", "stl", images=True)
         surfaces = time.perf_counter() - start
         start = time.perf_counter()
-        options = MeshOptions(periodic=args.periodic, size_factor=args.size_factor, itz=args.itz)
+        box = tuple(args.box) if args.box else None
+        options = MeshOptions(box=box, periodic=args.periodic, size_factor=args.size_factor, itz=args.itz)
         _, report = write_mesh(out / "mesh.msh", packing, options)
         total = time.perf_counter() - start
         if args.picture:

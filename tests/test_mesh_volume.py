@@ -11,7 +11,7 @@ from dataclasses import replace
 import meshio
 import numpy as np
 import pytest
-from packing_builders import cubic_cubes, fcc_spheres
+from packing_builders import cubic_cubes, fcc_spheres, sphere_column
 
 from granpack.box import Box
 from granpack.cli import main
@@ -154,15 +154,15 @@ def test_bad_options_are_one_line(rng):
         (MeshOptions(curvature=3), "--curvature must be a whole number >= 8"),
     ]
     for options, message in cases:
-        with pytest.raises(InputError, match=None) as info:
+        with pytest.raises(InputError) as info:
             plan_mesh(packing, options)
         assert message in str(info.value) and "\n" not in str(info.value)
-    overlapping, _ = fcc_spheres(1, 4)
-    with pytest.raises(InputError, match="the packing has no bulk region"):
-        plan_mesh(Packing(overlapping.state, overlapping.contacts, 5e-3, ["s"], {}).__class__(
-            ParticleState(box=overlapping.state.box, shapes=overlapping.state.shapes, kind=overlapping.state.kind[:4],
-                          population=overlapping.state.population[:4], position=overlapping.state.position[:4],
-                          quaternion=overlapping.state.quaternion[:4]), ContactSet.empty(), 5e-3, ["s"], {}), MeshOptions())
+    low, _ = fcc_spheres(1, 1)  # one layer of cells: no bulk to cut the default box from
+    with pytest.raises(InputError, match="the packing has no bulk region .* give the region with --box"):
+        plan_mesh(low, MeshOptions())
+    overlapping = sphere_column(side=2, layers=6, overlap=0.02)
+    with pytest.raises(InputError, match="--gap 0.02: the packing's grains overlap by up to 0.02 d"):
+        plan_mesh(overlapping, MeshOptions())
 
 
 def run_cli(args, capsys):
