@@ -67,6 +67,11 @@ def _tiny_dict() -> dict:
     return tomllib.loads(TINY)
 
 
+def _with_settings(run, settings: dict):
+    """``run`` with other run-config keys, and the config they validate to."""
+    return dataclasses.replace(run, config=load_config_dict(settings), settings=settings)
+
+
 # ----------------------------------------------------------------------------- spec
 
 
@@ -76,10 +81,10 @@ def test_spec_runs_seeds_folders_and_overrides():
         ("mono", 11, 0), ("mono", 12, 1), ("bi-30", 11, 0), ("bi-30", 12, 1)
     ]
     assert [r.folder.as_posix() for r in spec.runs[:2]] == ["mono/seed-11", "mono/seed-12"]
-    bi = spec.runs[2].config
+    bi = spec.runs[2].settings
     assert bi["lateral_size"] == 2.5 and bi["n_particles"] == 150
     assert bi["equilibrium"] == {"max_time": 6.0}
-    assert spec.runs[0].config["lateral_size"] == 3.0 and spec.runs[0].config["equilibrium"] == {"max_time": 15.0}
+    assert spec.runs[0].settings["lateral_size"] == 3.0 and spec.runs[0].settings["equilibrium"] == {"max_time": 15.0}
     assert spec.runs[2].family == "spheres" and spec.runs[2].share == 0.3 and spec.runs[2].shapes == "sphere"
 
 
@@ -102,7 +107,7 @@ def test_example_campaigns_load():
     }
     # 3000 grains, but the two mixtures that a 3 d cell leaves short (see the example's header)
     raised = {"pinacoids-small-51": 4322, "pinacoids-small-64": 5346}
-    assert all(r.config["n_particles"] == raised.get(r.mixture, 3000) for r in study.runs)
+    assert all(r.config.n_particles == raised.get(r.mixture, 3000) for r in study.runs)
     # every small run is a column 7 largest grains tall (at solid fraction 0.66, see the example's
     # header): a bulk region of about 3 d_max between the 2 d_max margins of the analysis, except
     # where a cap binds: 600 grains where small grains dominate, 400 for the thin-plate mixtures;
@@ -115,7 +120,7 @@ def test_example_campaigns_load():
     floored = {"flat-elongated-70": 450, "flat-elongated-100": 590}
     dense = {"pinacoids-small-30": 1300, "pinacoids-small-51": 2120, "pinacoids-small-64": 2620}
     for run in small.runs:
-        config = load_config_dict(run.config)
+        config = run.config
         mixture = Mixture.from_config(config)
         solid = float(np.sum(mixture.counts * mixture.particle_volumes))
         d_max = max(p.size for p in config.populations)
@@ -123,7 +128,7 @@ def test_example_campaigns_load():
         if run.mixture in floored:
             assert config.n_particles == floored[run.mixture]
             assert 5.05 <= height <= 5.15, (run.mixture, height)
-            fewer = load_config_dict({**run.config, "n_particles": config.n_particles - 10})
+            fewer = load_config_dict({**run.settings, "n_particles": config.n_particles - 10})
             less = float(np.sum(Mixture.from_config(fewer).counts * mixture.particle_volumes))
             assert less / (0.6 * config.lateral_size**2) / d_max < 5.0 / 0.9, run.mixture
         elif run.mixture in dense:
@@ -144,16 +149,16 @@ def test_interrupted_runs_then_longest_runs_start_first(tmp_path):
     spec = campaign_from_dict(_tiny_dict())
     costs = [estimated_cost(run) for run in spec.runs]
     assert costs == [150 * 15, 150 * 15, 150 * 6, 150 * 6]
-    bad = dataclasses.replace(spec.runs[0], config={**spec.runs[0].config, "n_particles": -1})
+    bad = dataclasses.replace(spec.runs[0], config=spec.runs[0].config.model_copy(update={"n_particles": 0}))
     assert estimated_cost(bad) == 0
     ordered = run_order([spec.runs[2], bad, spec.runs[0]], tmp_path)
     assert [estimated_cost(run) for run in ordered] == [2250, 900, 0]
     # a checkpoint of the short run bi-30/seed-12 puts it first; one left by another config does not
     resumed, stale = spec.runs[3], spec.runs[2]
-    for run, config in ((resumed, resumed.config), (stale, {**stale.config, "n_particles": 160})):
+    for run, settings in ((resumed, resumed.settings), (stale, {**stale.settings, "n_particles": 160})):
         run_dir = tmp_path / run.folder
         run_dir.mkdir(parents=True)
-        write_task(run_dir, dataclasses.replace(run, config=config))
+        write_task(run_dir, _with_settings(run, settings))
         (run_dir / "checkpoint.gsd").write_bytes(b"")
     ordered = run_order(list(spec.runs), tmp_path)
     folders = [run.folder.as_posix() for run in ordered]
@@ -275,7 +280,7 @@ def test_finished_runs_and_tables(tmp_path):
         folder.mkdir(parents=True)
         (folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, phi)))
         write_task(folder, run)
-    write_task(tmp_path / stale.folder, dataclasses.replace(stale, config={**stale.config, "n_particles": 31}))
+    write_task(tmp_path / stale.folder, _with_settings(stale, {**stale.settings, "n_particles": 31}))
     (tmp_path / failed.folder).mkdir(parents=True)
     (tmp_path / failed.folder / "error.txt").write_text("Traceback ...\nRuntimeError: solver diverged\n")
     assert is_finished(tmp_path, done)
@@ -338,8 +343,10 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
     spec_path.write_text(TINY)
     spec = load_campaign(spec_path)
     good = spec.runs
-    bad_config = {**good[0].config, "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 0.5}]}
-    bad = dataclasses.replace(good[0], mixture="bad", config=bad_config)
+    # a grading that 150 grains cannot pour: valid keys, refused by the run itself on the worker
+    graded = {"shape": "sphere", "volume_fraction": 1.0,
+              "grading": {"curve": "fuller", "d_min": 0.05, "d_max": 1.0, "exponent": 0.5}}
+    bad = dataclasses.replace(_with_settings(good[0], {**good[0].settings, "populations": [graded]}), mixture="bad")
     out = tmp_path / "out"
 
     import granpack.campaign.runner as runner
@@ -358,14 +365,14 @@ def test_campaign_end_to_end_resume_and_failure(tmp_path, capsys, monkeypatch):
     runs = pd.read_csv(out / "runs.csv")
     assert len(runs) == 5 and len(pd.read_parquet(out / "runs.parquet")) == 5
     assert runs["status"].tolist() == ["done"] * 4 + ["failed"]
-    assert "volume_fraction" in runs.loc[4, "error"]
-    assert "volume_fraction" in (out / "bad" / "seed-11" / "error.txt").read_text()
+    assert "cannot be represented by n_particles" in runs.loc[4, "error"]
+    assert "cannot be represented by n_particles" in (out / "bad" / "seed-11" / "error.txt").read_text()
     for run in good:  # each run's progress went to its progress.log, ending with how it ended
         log = (out / run.folder / "progress.log").read_text().splitlines()
         warned = [line for line in log if line.startswith("warning: ")]  # its advice first (max_time)
         assert warned and log[:len(warned)] == warned
         log = log[len(warned):]
-        assert log[0].startswith(f"pouring {run.config['n_particles']} grains") and "settling t = " in log[2]
+        assert log[0].startswith(f"pouring {run.config.n_particles} grains") and "settling t = " in log[2]
         assert log[-1].startswith(("equilibrium at t = ", "not at rest at t = "))
     for column in ("solid_fraction.bulk", "coordination.N"):
         assert runs.loc[:3, column].notna().all()
@@ -447,7 +454,7 @@ def test_a_local_worker_ignores_sigint_and_logs_only_critical_distributed_messag
 def _finished_under_another_config(tmp_path: Path, spec) -> list:
     """Fake finished runs of ``spec`` in ``tmp_path``, each computed for another max_time."""
     for run in spec.runs:
-        other = dataclasses.replace(run, config={**run.config, "equilibrium": {"max_time": 99.0}})
+        other = _with_settings(run, {**run.settings, "equilibrium": {"max_time": 99.0}})
         folder = tmp_path / run.folder
         folder.mkdir(parents=True)
         (folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, 0.7)))
@@ -494,13 +501,13 @@ def test_runs_kept_in_the_flat_solver_layout_of_0_1_0_are_the_same_runs_as_in_to
 
     spec = load_campaign_from_text(tmp_path, TINY)
     for run in spec.runs:
-        old = dataclasses.replace(run, config={**run.config, "solver": {"time_step": 5e-3, "tolerance": 1e-4}})
+        old = _with_settings(run, {**run.settings, "solver": {"time_step": 5e-3, "tolerance": 1e-4}})
         (tmp_path / run.folder).mkdir(parents=True)
         (tmp_path / run.folder / "analysis.json").write_text(json.dumps(_fake_analysis(run.seed, 0.7)))
         write_task(tmp_path / run.folder, old)
-    new = [dataclasses.replace(r, config={**r.config, "time_stepping": {"time_step": 5e-3}}) for r in spec.runs]
+    new = [_with_settings(r, {**r.settings, "time_stepping": {"time_step": 5e-3}}) for r in spec.runs]
     assert all(task_matches(tmp_path / r.folder, r) for r in new) and changed_runs(tmp_path, new) == []
-    other = [dataclasses.replace(r, config={**r.config, "time_stepping": {"time_step": 4e-3}}) for r in spec.runs]
+    other = [_with_settings(r, {**r.settings, "time_stepping": {"time_step": 4e-3}}) for r in spec.runs]
     assert changed_runs(tmp_path, other) == other
 
 
@@ -539,7 +546,7 @@ def test_the_substituted_grains_are_the_population_whose_share_the_mixture_gives
 
     spec = campaign_from_dict(_tiny_dict())
     assert [substituted(run) for run in spec.runs] == ["", "", "sphere, size 0.5 d", "sphere, size 0.5 d"]
-    flat = dataclasses.replace(spec.runs[2], config={**spec.runs[2].config, "populations": [
+    flat = _with_settings(spec.runs[2], {**spec.runs[2].settings, "populations": [
         {"shape": "pinacoid", "size": 1.0, "volume_fraction": 0.7},
         {"shape": "pinacoid", "size": 1.0, "aspect": [1.0, 3.0], "volume_fraction": 0.3}]})
     assert substituted(flat) == "pinacoid 1 x 3, size 1 d"

@@ -214,19 +214,18 @@ def _check_campaign(path: Path, json_output: bool) -> None:
 
     from granpack.advice import advise
     from granpack.campaign.spec import load_campaign
-    from granpack.config import load_config_dict
     from granpack.mixture import Mixture
 
     spec = load_campaign(path)
     rows, warnings, first_config = [], [], None
     for mix in spec.mixtures:
         runs = [r for r in spec.runs if r.mixture == mix.name]
-        cfg = load_config_dict(runs[0].config, source=f"{path}: {mix.name}")
+        cfg = runs[0].config
         first_config = first_config or cfg
         mixture = Mixture.from_config(cfg)
         for warning in advise(cfg, mixture):
             warnings.append(f"{mix.name}: {warning}")
-        for warning in _layout_warnings(runs[0].config):
+        for warning in _layout_warnings(runs[0].settings):
             if warning not in warnings:
                 warnings.append(warning)
         rows.append({"mixture": mix.name, "family": mix.family, "share": mix.share, "n_particles": cfg.n_particles,

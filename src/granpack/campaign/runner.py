@@ -58,7 +58,6 @@ from granpack.campaign.store import (
     write_tables,
     write_task,
 )
-from granpack.config import load_config_dict
 from granpack.errors import InputError
 from granpack.io.atomic import output_folder
 from granpack.io.run_folder import (
@@ -151,10 +150,9 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
         else:
             _clear_outputs(run_dir)
             write_task(run_dir, run)
-        config = load_config_dict(run.config, source=run.folder.as_posix())
         with _ONE_RUN_AT_A_TIME:
             if action != "analysed":  # the campaign owns its run folders: a run started afresh replaces what is there
-                run_packing(config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress="log")
+                run_packing(run.config, run_dir, resume=action == "resumed", overwrite=action == "simulated", progress="log")
             with warnings.catch_warnings():  # kept in analysis.json ("warnings"), not printed by the workers
                 warnings.simplefilter("ignore", AnalysisWarning)
                 result = analyze_run(run_dir)
@@ -243,13 +241,8 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int) -> Iterato
 
 
 def estimated_cost(run: RunSpec) -> int:
-    """Relative cost of a run: grains x settling-time cap (``n_particles * max_time``); 0 for a
-    config that does not validate (the task then fails and is reported like any other)."""
-    try:
-        config = load_config_dict(run.config, source=run.folder.as_posix())
-    except InputError:
-        return 0
-    return int(config.n_particles * config.equilibrium.max_time)
+    """Relative cost of a run: grains x settling-time cap (``n_particles * max_time``)."""
+    return int(run.config.n_particles * run.config.equilibrium.max_time)
 
 
 def has_checkpoint(out_dir: Path, run: RunSpec) -> bool:

@@ -26,9 +26,12 @@ import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from granpack.errors import InputError
+
+if TYPE_CHECKING:
+    from granpack.config import RunConfig
 
 __all__ = ["CampaignSpec", "MixtureSpec", "RunSpec", "load_campaign", "campaign_from_dict"]
 
@@ -66,8 +69,10 @@ class RunSpec:
         share: the mixture's share (0..1), or ``None``.
         replica: replica index, 0-based.
         seed: the run's random seed.
-        config: the complete run-config dict (base, overrides, populations, seed) that
-            :func:`granpack.config.load_config_dict` accepts.
+        config: the run config, validated: ``load_config_dict(settings)``.
+        settings: the run config's keys as the campaign file gives them (base, overrides,
+            populations, seed), which a run folder's ``task.json`` records and the warning about
+            the flat ``[solver]`` layout of granpack 0.1.0 reads.
     """
 
     mixture: str
@@ -75,7 +80,8 @@ class RunSpec:
     share: float | None
     replica: int
     seed: int
-    config: dict[str, Any]
+    config: RunConfig
+    settings: dict[str, Any]
 
     @property
     def folder(self) -> Path:
@@ -85,7 +91,7 @@ class RunSpec:
     @property
     def shapes(self) -> str:
         """The population shapes, sorted and joined by ``+`` (e.g. ``"pinacoid"``, ``"sphere"``)."""
-        return "+".join(sorted({str(p.get("shape", "")) for p in self.config["populations"]}))
+        return "+".join(sorted({p.shape for p in self.config.populations}))
 
 
 @dataclass(frozen=True)
@@ -179,7 +185,7 @@ def campaign_from_dict(data: dict[str, Any], *, source: str = "campaign", source
         source_text: the original text, kept for provenance.
 
     Returns:
-        The validated campaign, with every run config checked.
+        The validated campaign, each run carrying its validated config.
 
     Raises:
         InputError: one line naming the bad key, e.g. ``study.toml: mixtures[3] (flat-28):
@@ -219,10 +225,8 @@ def campaign_from_dict(data: dict[str, Any], *, source: str = "campaign", source
         reason = refusal(config, Mixture.from_config(config))
         if reason is not None:
             raise InputError(f"{where}: {reason}")
-        first_seed = int(config.seed)
         for r in range(replicas):
-            config = dict(merged, seed=first_seed + r)
-            runs.append(
-                RunSpec(mixture=mix.name, family=mix.family, share=mix.share, replica=r, seed=first_seed + r, config=config)
-            )
+            settings = dict(merged, seed=config.seed + r)
+            runs.append(RunSpec(mixture=mix.name, family=mix.family, share=mix.share, replica=r, seed=config.seed + r,
+                                config=load_config_dict(settings, source=where), settings=settings))
     return CampaignSpec(replicas=replicas, base=base, mixtures=mixtures, runs=tuple(runs), source_text=source_text)

@@ -3,7 +3,8 @@
 Every run folder ``<out>/<mixture>/seed-<s>/`` holds, besides the run's own files
 (``config.toml``, ``final.gsd``, ``summary.json``, checkpoints, ``analysis.json``):
 
-- ``task.json``: the campaign task (mixture, family, share, seed, run config) it was started for;
+- ``task.json``: the campaign task (mixture, family, share, seed, and the run config's keys as the
+  campaign file gives them) it was started for;
 - ``error.txt``: the traceback of its last failure (removed when it succeeds).
 
 A run is **finished** when ``analysis.json`` is valid (a JSON object with every key of
@@ -111,7 +112,7 @@ def _task_record(run: RunSpec) -> dict:
         "share": run.share,
         "replica": run.replica,
         "seed": run.seed,
-        "config": run.config,
+        "config": run.settings,
     }
 
 
@@ -122,7 +123,7 @@ def write_task(run_dir: Path, run: RunSpec) -> None:
 
 def task_matches(run_dir: Path, run: RunSpec) -> bool:
     """Whether ``run_dir/task.json`` records this run's config: the same keys (JSON round trip), or
-    the same settings written otherwise (a default written out, the flat ``[solver]`` layout of
+    keys that validate to the same config (a default written out, the flat ``[solver]`` layout of
     granpack 0.1.0)."""
     from granpack.config import load_config_dict
     from granpack.errors import InputError
@@ -130,10 +131,10 @@ def task_matches(run_dir: Path, run: RunSpec) -> bool:
     task = read_task(run_dir)
     if task is None:
         return False
-    if task.get("config") == json.loads(json.dumps(run.config)):
+    if task.get("config") == json.loads(json.dumps(run.settings)):
         return True
     try:
-        return load_config_dict(task.get("config")) == load_config_dict(run.config)
+        return load_config_dict(task.get("config")) == run.config
     except InputError:
         return False
 
@@ -188,30 +189,30 @@ def flatten(mapping: dict, prefix: str = "") -> dict[str, Any]:
 
 def substituted(run: RunSpec) -> str:
     """The grains a mixture's ``share`` counts, in words: the population whose volume fraction is
-    the share (``"pinacoid, size 0.333 d"``, ``"pinacoid 2 x 1"``), or ``""`` when none is."""
+    the share (``"pinacoid, size 0.333 d"``, ``"pinacoid 2 x 1"``; a graded population's size reads
+    1 d), or ``""`` when none is."""
     if run.share is None:
         return ""
-    for population in run.config["populations"]:
-        if abs(float(population.get("volume_fraction", -1.0)) - run.share) < 1e-6 and run.share > 0:
-            words = str(population.get("shape", ""))
-            aspect = population.get("aspect")
+    for population in run.config.populations:
+        if abs(population.volume_fraction - run.share) < 1e-6 and run.share > 0:
+            words = population.shape
+            aspect = population.aspect
             if aspect is not None and tuple(aspect) != (1.0, 1.0):
                 words += f" {aspect[0]:g} x {aspect[1]:g}"
-            return f"{words}, size {float(population.get('size', 1.0)):.3g} d"
+            size = 1.0 if population.size is None else population.size
+            return f"{words}, size {size:.3g} d"
     return ""
 
 
 def grading_of(run: RunSpec) -> tuple[str, float]:
     """The curve of the run's first graded population and its parameter, the Fuller exponent or
-    the lognormal's polydispersity (``("", nan)`` when no population is graded, or for a sieve
+    the lognormal's polydispersity (``("", nan)`` when no population is graded; NaN for a sieve
     table, which no single number describes)."""
-    for population in run.config["populations"]:
-        grading = population.get("grading")
-        if isinstance(grading, dict):
-            curve = str(grading.get("curve", ""))
-            key = {"fuller": "exponent", "lognormal": "polydispersity"}.get(curve)
-            value = grading.get(key) if key else None
-            return curve, float(value) if isinstance(value, (int, float)) else math.nan
+    for population in run.config.populations:
+        grading = population.grading
+        if grading is not None:  # a validated grading sets the one parameter of its curve, if any
+            parameter = next((value for value in (grading.exponent, grading.polydispersity) if value is not None), None)
+            return grading.curve, math.nan if parameter is None else float(parameter)
     return "", math.nan
 
 
