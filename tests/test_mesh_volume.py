@@ -239,3 +239,20 @@ def test_checks_not_met_are_said(gmsh, tmp_path, capsys):
     assert err.startswith("checks not met: aggregate_fraction, grain_volumes (") and len(err.splitlines()) == 1
     report = json.loads((tmp_path / "m.json").read_text())
     assert report["aggregate_fraction"]["relative_error"] < -0.05 and report["checks"]["positive_volumes"]
+
+
+def test_gmsh_without_its_system_libraries_is_one_line(tmp_path, capsys, monkeypatch):
+    import builtins
+
+    real_import = builtins.__import__
+
+    def failing(name, *args, **kwargs):
+        if name == "gmsh":
+            raise OSError("libGLU.so.1: cannot open shared object file: No such file or directory")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.delitem(sys.modules, "gmsh", raising=False)
+    monkeypatch.setattr(builtins, "__import__", failing)
+    code, _, err = run_cli(["mesh", str(tmp_path), "--out", str(tmp_path / "m.msh")], capsys)
+    assert code == 2 and len(err.splitlines()) == 1
+    assert err.startswith("error: granpack mesh: gmsh is installed but does not load (libGLU.so.1") and "apt install" in err

@@ -36,8 +36,12 @@ def require_gmsh():
     """The gmsh module, or an :class:`InputError` naming the extra that installs it."""
     try:
         import gmsh
-    except (ImportError, OSError):  # OSError: the wheel's shared libraries missing on this system
+    except ImportError:
         raise InputError('granpack mesh needs gmsh (GPL, an optional extra): pip install "granpack[mesh]"') from None
+    except OSError as exc:  # the wheel's library needs the system's OpenGL and X11 libraries
+        raise InputError(f"granpack mesh: gmsh is installed but does not load ({' '.join(str(exc).split())}); it needs "
+                         f"the system's libGLU, libGL and libX11 (Debian, Ubuntu: apt install libglu1-mesa libxcursor1 "
+                         f"libxft2 libxinerama1)") from None
     return gmsh
 
 
