@@ -218,13 +218,6 @@ def _array(value) -> np.ndarray:
     return np.array([math.nan if v is None else v for v in value], dtype=float)
 
 
-def _population_names(analysis: dict) -> list[str]:
-    names = []
-    for k, pop in enumerate(analysis.get("populations") or []):
-        names.append(str(pop.get("name", f"population {k}")) if isinstance(pop, dict) else str(pop))
-    return names
-
-
 def _homogeneity(analysis: dict) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, float]]:
     """Layer heights, the volume proportion profile of each population, and the nominal
     proportions (``homogeneity`` {z, proportions, nominal} of an analysis)."""

@@ -97,7 +97,6 @@ class PairCorrelation(Compute):
             r_max = limit
         width = r_max / self.bins
         self._edges = np.arange(self.bins + 1) * width
-        self._r_max = r_max
         npop = len(packing.population_names) if state.n else 1
         self._g = np.full(self.bins, math.nan)
         self._z_cum = np.full(self.bins, math.nan)

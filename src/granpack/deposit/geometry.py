@@ -59,7 +59,7 @@ def plane(pid, radius, lsize, out):
     elif pid == Y_LO:
         out[1] = 1.0
         out[3] = radius
-    else:
+    elif pid == Y_HI:
         out[1] = -1.0
         out[3] = radius - lsize
 
