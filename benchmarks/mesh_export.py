@@ -11,7 +11,12 @@ Packing: ``RUN_DIR/final.gsd`` of a finished run, e.g. the demo's (300 isometric
 
 Usage::
 
-    python benchmarks/mesh_export.py RUN_DIR [--out FOLDER] [--periodic] [--size-factor F] [--itz T] [--tile K] [--box X0 Y0 Z0 X1 Y1 Z1] [--picture PNG]
+    python benchmarks/mesh_export.py RUN_DIR [--out FOLDER] [--periodic] [--size-factor F] [--curvature N] [--itz T] [--tile K] [--box X0 Y0 Z0 X1 Y1 Z1] [--picture PNG]
+
+``RUN_DIR`` is any run folder with a ``final.gsd`` (copy it out of a campaign's folder first: the
+files of ``--out`` go where it says, nothing into ``RUN_DIR``). The JSON also gives the process's CPU
+seconds (user + system, gmsh's threads included) beside the wall seconds, and the load average
+before and after: on a shared machine the wall seconds are upper bounds.
 
 ``--tile K`` meshes the packing repeated K x K times across its periodic cell (a packing at rest
 too, K^2 times the grains, the same overlaps), for the cost of larger boxes without a longer run.
@@ -23,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import resource
 import tempfile
@@ -93,11 +99,13 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None, help="folder for the files (default: a temporary one)")
     parser.add_argument("--periodic", action="store_true")
     parser.add_argument("--size-factor", type=float, default=0.2)
+    parser.add_argument("--curvature", type=int, default=None, help="elements per turn on spheres (default: the mesher's)")
     parser.add_argument("--itz", type=float, default=0.0)
     parser.add_argument("--picture", type=Path, default=None)
     parser.add_argument("--tile", type=int, default=1)
     parser.add_argument("--box", type=float, nargs=6, default=None, metavar=("X0", "Y0", "Z0", "X1", "Y1", "Z1"))
     args = parser.parse_args()
+    load_before = os.getloadavg()
     packing = read_packing(args.run_dir / "final.gsd")
     if args.tile > 1:
         packing = tiled(packing, args.tile)
@@ -109,9 +117,13 @@ def main() -> None:
         surfaces = time.perf_counter() - start
         start = time.perf_counter()
         box = tuple(args.box) if args.box else None
-        options = MeshOptions(box=box, periodic=args.periodic, size_factor=args.size_factor, itz=args.itz)
+        extra = {} if args.curvature is None else {"curvature": args.curvature}
+        options = MeshOptions(box=box, periodic=args.periodic, size_factor=args.size_factor, itz=args.itz, **extra)
+        cpu_start = resource.getrusage(resource.RUSAGE_SELF)
         _, report = write_mesh(out / "mesh.msh", packing, options)
         total = time.perf_counter() - start
+        cpu_end = resource.getrusage(resource.RUSAGE_SELF)
+        cpu = (cpu_end.ru_utime - cpu_start.ru_utime) + (cpu_end.ru_stime - cpu_start.ru_stime)
         if args.picture:
             draw_cut(out / "mesh.msh", args.picture)
     print(json.dumps({
@@ -121,6 +133,10 @@ def main() -> None:
         "surfaces": {"bodies": bodies, "seconds": round(surfaces, 2)},
         "mesh": {
             "seconds": round(total, 2),
+            "cpu_seconds": round(cpu, 2),
+            "load_average": {"before": [round(v, 2) for v in load_before], "after": [round(v, 2) for v in os.getloadavg()]},
+            "size_factor": args.size_factor,
+            "curvature": options.curvature,
             "stages": {k: round(v, 2) for k, v in report["seconds"].items()},
             "box": [round(v, 4) for v in report["box"]],
             "periodic": args.periodic,
