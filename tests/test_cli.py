@@ -706,10 +706,10 @@ def test_settling_bar_keeps_the_time_on_an_80_column_terminal():
 
     report = SimpleNamespace(force_ok=True, torque_ok=False, energy_ok=False, wall_ok=True, max_net_force=1.2e-2,
                              kinetic_energy=3e-5, max_net_torque=1e-3, wall_force_over_weight=0.9998)
-    progress = _SettlingProgress("bar", 200.0, 5e-3, _Lines())
+    progress = _SettlingProgress("bar", 200.0, _Lines())
     with progress:
         progress._bar.stop()
-        progress.update(123.456, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
+        progress.update(123.456, 24691, 1.23e-3, 1234, report, 2, 5, 3.2e-4)
         screen = io.StringIO()
         Console(file=screen, width=80).print(progress._bar.get_renderable())
     line = screen.getvalue().splitlines()[0]
@@ -730,20 +730,20 @@ def test_progress_before_any_contact_force_says_so_instead_of_an_infinite_force(
     report = SimpleNamespace(force_ok=False, torque_ok=False, energy_ok=False, wall_ok=False, max_net_force=math.inf,
                              kinetic_energy=math.inf, max_net_torque=math.inf, wall_force_over_weight=0.0)
     written = []
-    with _SettlingProgress("lines", 80.0, 5e-3, written.append) as progress:
-        progress.update(0.25, 1.3, 0, report, 0, 5, 0.0)
+    with _SettlingProgress("lines", 80.0, written.append) as progress:
+        progress.update(0.25, 50, 1.3, 0, report, 0, 5, 0.0)
     assert len(written) == 1 and "inf" not in written[0]
     assert "largest net force n/a (no contact carries force yet)" in written[0]
-    progress = _SettlingProgress("bar", 80.0, 5e-3, written.append)
+    progress = _SettlingProgress("bar", 80.0, written.append)
     with progress:
         progress._bar.stop()
-        progress.update(0.25, 1.3, 0, report, 0, 5, 0.0)
+        progress.update(0.25, 50, 1.3, 0, report, 0, 5, 0.0)
         screen = io.StringIO()
         Console(file=screen, width=200).print(progress._bar.get_renderable())
     assert "|F| n/a" in screen.getvalue()
     report.max_net_force = 3.68e3
-    with _SettlingProgress("lines", 80.0, 5e-3, written.append) as progress:
-        progress.update(0.5, 1.3, 2, report, 0, 5, 0.0)
+    with _SettlingProgress("lines", 80.0, written.append) as progress:
+        progress.update(0.5, 100, 1.3, 2, report, 0, 5, 0.0)
     assert "largest net force 3.68e+03 d^2 P" in written[-1]
 
 

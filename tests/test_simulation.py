@@ -542,11 +542,11 @@ def test_shake_adds_the_speed_in_a_random_direction_reproducibly():
 
 
 def test_shake_is_due_near_rest_at_most_once_per_interval():
-    config = load_config_dict({**sphere_config().model_dump(), "end_game": {"shake_speed": 1e-3}})
+    config = settling.settling_policy(load_config_dict({**sphere_config().model_dump(), "end_game": {"shake_speed": 1e-3}}))
     report = type("Report", (), {"kinetic_energy": 1e-9, "passed": False})()
     quiet = RunRecord(milestones=Milestones(near_rest=True))
     assert settling.shake_due(config, quiet, report, 40.0)
-    assert not settling.shake_due(sphere_config(), quiet, report, 40.0)  # shake_speed 0: never
+    assert not settling.shake_due(settling.settling_policy(sphere_config()), quiet, report, 40.0)  # shake_speed 0: never
     assert not settling.shake_due(config, RunRecord(milestones=Milestones(near_rest=False)), report, 40.0)
     assert not settling.shake_due(config, quiet, type("Report", (), {"kinetic_energy": 1e-6, "passed": False})(), 40.0)
     # a pile that meets the criteria is counting its window: no shake
@@ -597,3 +597,21 @@ def test_a_checkpoint_whose_config_comments_differ_resumes(tmp_path, monkeypatch
     assert reworded != saved.metadata["config"]
     write_packing(tmp_path / "checkpoint.gsd", replace(saved, metadata={**saved.metadata, "config": reworded}))
     assert run_packing(config, tmp_path, resume=True, progress=False)["steps"] > 0
+
+
+def test_the_settling_policy_takes_each_of_its_settings_from_the_config():
+    """The loop reads its settings from one object built once (settling.settling_policy), each
+    field from its own key: a config that changes every one of them changes every field."""
+    changed = load_config_dict({**sphere_config().model_dump(), "seed": 9,
+                                "time_stepping": {"max_rotation": 0.1},
+                                "solver": {"settling_tolerance": 2e-3, "tolerance_below": 2e-5},
+                                "overlap": {"pour_projection_slop": 3e-3, "pour_projection_interval": 7,
+                                            "rest_recovery_slop": 6e-5, "rest_recovery_speed": 1e-3},
+                                "end_game": {"mode": "none", "damping_rate": 2.0, "damping_below": 2e-3,
+                                             "shake_speed": 1e-3, "shake_below": 2e-7, "shake_interval": 6.0},
+                                "equilibrium": {"max_time": 50.0, "check_interval": 0.5, "window": 3}})
+    default, policy = settling.settling_policy(sphere_config()), settling.settling_policy(changed)
+    differing = {name for name in type(policy).__dataclass_fields__ if getattr(policy, name) != getattr(default, name)}
+    assert differing == set(type(policy).__dataclass_fields__)
+    assert (policy.max_steps, policy.check_every, policy.window, policy.damping) == (10_000, 100, 3, False)
+    assert settling.steps_of(0.25, 5e-3) == 50 and settling.steps_of(1e-4, 5e-3) == 1

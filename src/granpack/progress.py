@@ -89,14 +89,13 @@ class SettlingProgress:
     ``"off"``: nothing.
     """
 
-    def __init__(self, mode: str, max_time: float, time_step: float, write: Lines):
+    def __init__(self, mode: str, max_time: float, write: Lines):
         self.mode = mode
         self.write = write
         self.max_time = max_time
-        self.time_step = time_step
         self._bar = None
         self._task = None
-        self._last: tuple[float, float] | None = None  # (wall clock, simulated time) of the last line
+        self._last: tuple[float, int] | None = None  # (wall clock, step) of the last line
         self._checked: tuple | None = None  # the last check's figures and its simulated time
 
     def __enter__(self):
@@ -117,8 +116,8 @@ class SettlingProgress:
             self._task = self._bar.add_task("settling", total=self.max_time, info="")
         return self
 
-    def update(self, t: float, ek: float, n_contacts: int, report: EquilibriumReport, passes: int, window: int,
-               overlap: float) -> None:
+    def update(self, t: float, step: int, ek: float, n_contacts: int, report: EquilibriumReport, passes: int,
+               window: int, overlap: float) -> None:
         if self.mode == "bar" and self._bar is not None:
             flags = "".join(name if ok else "." for name, ok in (("F", report.force_ok), ("T", report.torque_ok),
                                                                   ("E", report.energy_ok), ("W", report.wall_ok)))
@@ -128,41 +127,42 @@ class SettlingProgress:
             self._bar.update(self._task, completed=min(t, self.max_time), info=info)
         elif self.mode in ("lines", "log"):
             self._checked = (ek, n_contacts, report, passes, window, overlap, t)
-            self._line(t, time.perf_counter())
+            self._line(t, step, time.perf_counter())
 
     def checked(self, run) -> None:
         """Observer of a :class:`granpack.settling.Settling`: the figures of the check just made."""
         from granpack.run_record import TIMELINE_COLUMNS
 
         row = run.record.timeline[-1]
-        self.update(run.state.time, row[TIMELINE_COLUMNS.index("kinetic_energy_total")], run.contacts.n_manifolds,
-                    run.report, run.record.milestones.passes, run.config.equilibrium.window,
+        self.update(run.state.time, run.record.milestones.step, row[TIMELINE_COLUMNS.index("kinetic_energy_total")],
+                    run.contacts.n_manifolds, run.report, run.record.milestones.passes, run.policy.window,
                     row[TIMELINE_COLUMNS.index("max_overlap")])
 
     def stepped(self, run) -> None:
         """Observer of a :class:`granpack.settling.Settling`: a line when one is due (:meth:`tick`)
         on a step without a check (a check has just given its own)."""
-        if run.record.milestones.step % run.check_every:
-            self.tick(run.state.time)
+        step = run.record.milestones.step
+        if step % run.policy.check_every:
+            self.tick(run.state.time, step)
 
-    def tick(self, t: float) -> None:
+    def tick(self, t: float, step: int) -> None:
         """After each step: a line in ``"lines"`` / ``"log"`` mode when one is due since the last."""
         if self._checked is None or self.mode not in ("lines", "log"):
             return
         now = time.perf_counter()
         if now - self._last[0] >= PROGRESS_LINE_SECONDS:
-            self._line(t, now)
+            self._line(t, step, now)
 
-    def _line(self, t: float, now: float) -> None:
+    def _line(self, t: float, step: int, now: float) -> None:
         if self._last is not None and now - self._last[0] < PROGRESS_LINE_SECONDS:
             return
         ek, n_contacts, report, passes, window, overlap, t_check = self._checked
         rate = ""
         if self._last is not None and now > self._last[0]:
-            rate = f", {(t - self._last[1]) / self.time_step / (now - self._last[0]):.3g} steps/s"
-        self._last = (now, t)
+            rate = f", {(step - self._last[1]) / (now - self._last[0]):.3g} steps/s"
+        self._last = (now, step)
         when = "" if t_check == t else f" (at the last check, t = {t_check:.2f})"
-        self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {round(t / self.time_step)}{rate}, "
+        self.write(f"settling t = {t:.2f}/{self.max_time:g} sqrt(d/g), step {step}{rate}, "
                    f"kinetic energy {ek:.3g}, largest net force {net_force(report)}, "
                    f"{n_contacts} contacts, largest overlap {overlap:.2g} d, "
                    f"criteria met: {criteria_met(report)} ({passes}/{window} checks){when}")

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -42,8 +42,8 @@ from granpack.packing import Packing
 from granpack.run_record import RunRecord, timeline_row
 from granpack.state import ParticleState
 
-__all__ = ["PHASES", "STATUS_AT_REST", "STATUS_NOT_AT_REST", "Observer", "Settling", "shake",
-           "step_parameters"]
+__all__ = ["PHASES", "STATUS_AT_REST", "STATUS_NOT_AT_REST", "Observer", "Settling", "SettlingPolicy", "shake",
+           "settling_policy", "step_parameters"]
 
 PHASES = ("collapse", "end game", "settle", "certify")
 STATUS_AT_REST = "equilibrium"
@@ -65,6 +65,71 @@ def step_parameters(config: RunConfig) -> StepParameters:
         alert=config.resolved_alert_distance, overlap_slop=o.projection_slop,
         recovery_slop=o.recovery_slop, recovery_rate=o.recovery_rate, recovery_speed=o.recovery_speed,
         parallel_points=points if points > 0 else 2**62, nncg=s.acceleration == "nncg",
+    )
+
+
+@dataclass(frozen=True)
+class SettlingPolicy:
+    """What the settling loop decides beside the NSCD step (:class:`StepParameters`): its phases,
+    checks and stopping rules, from a run config (:func:`settling_policy`). Units: d, sqrt(d/g),
+    d^3 P for the kinetic thresholds.
+
+    Attributes:
+        max_steps: steps to ``equilibrium.max_time``.
+        check_every: steps between two equilibrium checks (``equilibrium.check_interval``).
+        window: consecutive passed checks that end the run (``equilibrium.window``).
+        max_rotation: ``time_stepping.max_rotation``, rad per step (the step policy).
+        settling_tolerance: the NLGS tolerance before the pile is near rest.
+        tolerance_below: the kinetic criterion below which the pile is near rest.
+        pour_projection_slop: the projection's slop on a step of the pour ...
+        pour_projection_interval: ... every this many steps (none between).
+        damping: ``end_game.mode == "damping"``.
+        damping_rate: the end game's velocity damping rate, 1/sqrt(d/g).
+        damping_below: the kinetic criterion below which the end game starts.
+        shake_speed: the speed of a shake, sqrt(g d); 0: never.
+        shake_below: the kinetic criterion below which a pile near rest may be shaken ...
+        shake_interval: ... at most once per this simulated time.
+        rest_recovery_slop: the overlap a pile at rest is pushed back to, d ...
+        rest_recovery_speed: ... at most at this speed, sqrt(g d); 0: never.
+        seed: the run's seed (the random directions of the shakes).
+    """
+
+    max_steps: int
+    check_every: int
+    window: int
+    max_rotation: float
+    settling_tolerance: float
+    tolerance_below: float
+    pour_projection_slop: float
+    pour_projection_interval: int
+    damping: bool
+    damping_rate: float
+    damping_below: float
+    shake_speed: float
+    shake_below: float
+    shake_interval: float
+    rest_recovery_slop: float
+    rest_recovery_speed: float
+    seed: int
+
+
+def steps_of(interval: float, time_step: float) -> int:
+    """The whole number of steps closest to a simulated ``interval``, at least one: how the loop
+    and its observers turn every interval of a config into steps."""
+    return max(1, int(round(interval / time_step)))
+
+
+def settling_policy(config: RunConfig) -> SettlingPolicy:
+    """The settling loop's settings of a run config, read once."""
+    h, eq, e, o = config.time_stepping.time_step, config.equilibrium, config.end_game, config.overlap
+    return SettlingPolicy(
+        max_steps=int(math.ceil(eq.max_time / h - 1e-9)), check_every=steps_of(eq.check_interval, h), window=eq.window,
+        max_rotation=config.time_stepping.max_rotation, settling_tolerance=config.solver.settling_tolerance,
+        tolerance_below=config.solver.tolerance_below, pour_projection_slop=o.pour_projection_slop,
+        pour_projection_interval=o.pour_projection_interval, damping=e.mode == "damping", damping_rate=e.damping_rate,
+        damping_below=e.damping_below, shake_speed=e.shake_speed, shake_below=e.shake_below,
+        shake_interval=e.shake_interval, rest_recovery_slop=o.rest_recovery_slop,
+        rest_recovery_speed=o.rest_recovery_speed, seed=config.seed,
     )
 
 
@@ -93,22 +158,25 @@ class Settling:
                  record: RunRecord):
         self.config, self.mixture, self.state, self.contacts, self.record = config, mixture, state, contacts, record
         self.params = step_parameters(config)
+        self.policy = settling_policy(config)
         self.criteria = criteria_of(config.equilibrium)
         h = self.params.time_step
         d_min = 2.0 * float(state.shapes.radius.min())
         d_max = 2.0 * float(state.shapes.radius.max())
-        room = 0.5 * config.lateral_size - d_max - 1e-9  # one periodic image per pair: alert + skin < room
+        room = 0.5 * state.box.lx - d_max - 1e-9  # one periodic image per pair: alert + skin < room
         skin = max(0.0, min(max(_SKIN_FRACTION * d_min, _SKIN_FLOOR * d_max), 0.25 * (room - self.params.alert)))
         self.ceiling = max(self.params.alert, room - skin)  # the largest alert distance of a step
         self.detector = Detector(skin=skin)
-        eq = config.equilibrium
-        self.n_steps_max = int(math.ceil(eq.max_time / h - 1e-9))
-        self.check_every = max(1, int(round(eq.check_interval / h)))
         self.step_h = h  # the (sub)step of the last solve: the contacts' impulses are over it
         self.tolerance = self.params.tolerance  # the NLGS tolerance of the last step
         self.report: EquilibriumReport | None = None
         self.status = STATUS_NOT_AT_REST
         self.notes: list[str] = []  # what the run has to say (the slow recovery starting), for the observers
+
+    def steps_of(self, interval: float) -> int:
+        """The steps of this run in a simulated ``interval`` (:func:`steps_of`): what the loop tells
+        its observers (checkpoints, snapshots) instead of each converting its own."""
+        return steps_of(interval, self.params.time_step)
 
     @property
     def phase(self) -> str:
@@ -133,10 +201,10 @@ class Settling:
     def run(self, observers: tuple[Observer, ...] = ()) -> str:
         """Step until at rest or ``max_time``; return the status. A check is made at the end too
         when the last step was not a checked one, so that :attr:`report` is the final state's."""
-        m = self.record.milestones
-        while m.step < self.n_steps_max:
+        m, every = self.record.milestones, self.policy.check_every
+        while m.step < self.policy.max_steps:
             self.advance()
-            if m.step % self.check_every == 0:
+            if m.step % every == 0:
                 at_rest = self.check()
                 for observer in observers:
                     observer.checked(self)
@@ -146,32 +214,32 @@ class Settling:
                     break
             for observer in observers:
                 observer.stepped(self)
-        if self.report is None or m.step % self.check_every != 0:
+        if self.report is None or m.step % every != 0:
             self.report = check_equilibrium(self.state, self._contacts(), self.step_h, criteria=self.criteria)
             self.record.last_report = self.report.as_dict()
         return self.status
 
     def advance(self) -> None:
         """One time step (split into substeps where the step policy says so), with the phase's settings."""
-        config, params, m, state = self.config, self.params, self.record.milestones, self.state
+        policy, params, m, state = self.policy, self.params, self.record.milestones, self.state
         h = params.time_step
-        alert, substeps = step_alert(state, params.alert, h, self.ceiling, config.time_stepping.max_rotation)
+        alert, substeps = step_alert(state, params.alert, h, self.ceiling, policy.max_rotation)
         reach = step_reach(state, params.alert, h, substeps, self.contacts) if alert > params.alert else None
-        self.tolerance = params.tolerance if m.near_rest else max(params.tolerance, config.solver.settling_tolerance)
+        self.tolerance = params.tolerance if m.near_rest else max(params.tolerance, policy.settling_tolerance)
         if alert == params.alert:
             slop = params.overlap_slop
-        elif m.step % config.overlap.pour_projection_interval == 0:
-            slop = min(params.overlap_slop, config.overlap.pour_projection_slop)
+        elif m.step % policy.pour_projection_interval == 0:
+            slop = min(params.overlap_slop, policy.pour_projection_slop)
         else:
             slop = 0.0  # no projection on this step of the pour
         self.step_h = h / substeps
-        checking = (m.step + 1) % self.check_every == 0
-        damping = config.end_game.damping_rate if m.end_game and not checking else 0.0
+        checking = (m.step + 1) % policy.check_every == 0
+        damping = policy.damping_rate if m.end_game and not checking else 0.0
         step_params = replace(params, alert=alert, tolerance=self.tolerance, overlap_slop=slop, time_step=self.step_h,
                               damping=damping)
         if m.rest_recovery_from is not None:
-            step_params = replace(step_params, slow_recovery_slop=config.overlap.rest_recovery_slop,
-                                  slow_recovery_speed=config.overlap.rest_recovery_speed)
+            step_params = replace(step_params, slow_recovery_slop=policy.rest_recovery_slop,
+                                  slow_recovery_speed=policy.rest_recovery_speed)
         for _ in range(substeps):
             prediction = predict(state, step_params)
             t0 = time.perf_counter()
@@ -187,28 +255,26 @@ class Settling:
     def check(self) -> bool:
         """The equilibrium check: the phase's milestones, a shake if due, the timeline row; whether the
         run ends at rest."""
-        config, m, state = self.config, self.record.milestones, self.state
+        policy, m, state = self.policy, self.record.milestones, self.state
         self.report = report = check_equilibrium(state, self.contacts, self.step_h, criteria=self.criteria)
         m.passes = m.passes + 1 if report.passed and m.near_rest else 0
-        m.end_game = m.end_game or (config.end_game.mode == "damping"
-                                    and report.kinetic_energy < config.end_game.damping_below)
-        m.near_rest = m.near_rest or report.kinetic_energy < config.solver.tolerance_below
-        if shake_due(config, self.record, report, state.time):
-            shake(state, config.end_game.shake_speed, np.random.default_rng([config.seed, m.shakes]))
+        m.end_game = m.end_game or (policy.damping and report.kinetic_energy < policy.damping_below)
+        m.near_rest = m.near_rest or report.kinetic_energy < policy.tolerance_below
+        if shake_due(policy, self.record, report, state.time):
+            shake(state, policy.shake_speed, np.random.default_rng([policy.seed, m.shakes]))
             m.shakes += 1
             m.last_shake = state.time
         self.record.clock.stamp()
         self.record.timeline.append(timeline_row(self.record, state, self.contacts, report, self.tolerance))
         self.record.last_report = report.as_dict()
-        if m.passes < config.equilibrium.window:
+        if m.passes < policy.window:
             return False
-        if not rest_recovery_due(config, self.record, self.contacts):
+        if not rest_recovery_due(policy, self.params, self.record, self.contacts):
             return True
         m.rest_recovery_from = state.time
         m.passes = 0
-        o = config.overlap
         self.notes.append(f"at rest at t = {state.time:.6g} sqrt(d/g) with overlaps up to {-self.contacts.gap.min():.2g} "
-                          f"d: pushing them back to {o.rest_recovery_slop:g} d (at most {o.rest_recovery_speed:g} "
+                          f"d: pushing them back to {policy.rest_recovery_slop:g} d (at most {policy.rest_recovery_speed:g} "
                           "sqrt(g d)), then checking again")
         return False
 
@@ -216,7 +282,7 @@ class Settling:
         return self.contacts if self.contacts is not None else ContactSet.empty()
 
 
-def rest_recovery_due(config: RunConfig, record: RunRecord, contacts: ContactSet) -> bool:
+def rest_recovery_due(policy: SettlingPolicy, params: StepParameters, record: RunRecord, contacts: ContactSet) -> bool:
     """Whether a pile that has just met the criteria starts the slow overlap recovery instead of
     ending: once per run, when it is on (``overlap.rest_recovery_speed > 0``) and some overlap is
     deeper than ``overlap.rest_recovery_slop``.
@@ -227,18 +293,17 @@ def rest_recovery_due(config: RunConfig, record: RunRecord, contacts: ContactSet
     settling, they shrink to the slow slop while the pile stays quasi-static; the window then
     starts again, so the packing written is one at rest with the small overlaps.
     """
-    o = config.overlap
-    return (record.milestones.rest_recovery_from is None and o.rest_recovery_speed > 0 and o.recovery_rate > 0
-            and contacts.n_points > 0 and float(-contacts.gap.min()) > o.rest_recovery_slop)
+    return (record.milestones.rest_recovery_from is None and policy.rest_recovery_speed > 0 and params.recovery_rate > 0
+            and contacts.n_points > 0 and float(-contacts.gap.min()) > policy.rest_recovery_slop)
 
 
-def shake_due(config: RunConfig, record: RunRecord, report: EquilibriumReport, time_now: float) -> bool:
+def shake_due(policy: SettlingPolicy, record: RunRecord, report: EquilibriumReport, time_now: float) -> bool:
     """Whether this check shakes the pile: shakes on, the fine tolerance in use, the kinetic criterion
     below ``end_game.shake_below``, ``end_game.shake_interval`` past the last shake, and the check failed
     (a pile that meets the criteria is counting its window towards rest: a shake would restart it)."""
-    e, m = config.end_game, record.milestones
-    return (e.shake_speed > 0 and m.near_rest and not report.passed and report.kinetic_energy < e.shake_below
-            and (m.last_shake is None or time_now - m.last_shake >= e.shake_interval - 1e-9))
+    p, m = policy, record.milestones
+    return (p.shake_speed > 0 and m.near_rest and not report.passed and report.kinetic_energy < p.shake_below
+            and (m.last_shake is None or time_now - m.last_shake >= p.shake_interval - 1e-9))
 
 
 def shake(state: ParticleState, speed: float, rng: np.random.Generator) -> None:

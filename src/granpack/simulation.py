@@ -159,12 +159,9 @@ class _Checkpoints:
     ``output.snapshot_interval``, and on Ctrl-C a checkpoint of the step just made, then
     :class:`RunInterrupted`."""
 
-    def __init__(self, out_dir: Path, config: RunConfig, interrupt: Interrupt, note: Notes):
-        h = config.time_stepping.time_step
+    def __init__(self, out_dir: Path, interrupt: Interrupt, note: Notes, checkpoint_every: int, snapshot_every: int):
         self.out_dir, self.interrupt, self.note = out_dir, interrupt, note
-        self.checkpoint_every = max(1, int(round(config.output.checkpoint_interval / h)))
-        snapshot = config.output.snapshot_interval
-        self.snapshot_every = int(round(snapshot / h)) if snapshot > 0 else 0
+        self.checkpoint_every, self.snapshot_every = checkpoint_every, snapshot_every  # steps; 0: no snapshots
 
     def checked(self, run: Settling) -> None:
         for line in run.notes:
@@ -261,11 +258,13 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     record.clock.start(wall_start)
 
     run = Settling(config, mixture, state, contacts, record)
-    eq = config.equilibrium
-    bar = SettlingProgress(mode, eq.max_time, config.time_stepping.time_step, write)
+    bar = SettlingProgress(mode, config.equilibrium.max_time, write)
     interrupt = Interrupt()
+    output = config.output
+    checkpoints = _Checkpoints(out_dir, interrupt, note, run.steps_of(output.checkpoint_interval),
+                               run.steps_of(output.snapshot_interval) if output.snapshot_interval > 0 else 0)
     with bar, interrupt:
-        status = run.run((bar, _Checkpoints(out_dir, config, interrupt, note)))
+        status = run.run((bar, checkpoints))
     record.clock.stamp()
     summary = _summary(config, run, status)
     write_packing(out_dir / FINAL_FILE, run.packing({"status": status, "summary": _headline(summary)}))
