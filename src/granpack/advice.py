@@ -1,6 +1,6 @@
 """What granpack says of a run config before the run: warnings, and refusals of what cannot work.
 
-:func:`run_packing <granpack.simulation.run_packing>` calls :func:`advise` before anything is
+:func:`granpack.simulation.run_packing` calls :func:`advise` before anything is
 written, so the Python API warns and refuses as ``granpack check`` and ``granpack run`` do; a
 campaign checks each of its runs the same way before any starts.
 
