@@ -17,7 +17,7 @@ from granpack.analysis.coordination import Coordination
 from granpack.analysis.grain_shapes import GrainShapes
 from granpack.analysis.order import Order
 from granpack.io.gsd import read_packing, write_packing
-from granpack.io.mesh_files import read_mesh
+from granpack.shapes.mesh_files import read_mesh
 from granpack.shapes import Pinacoid, Sphere, platonic
 from granpack.shapes.from_mesh import grain_from_mesh
 from granpack.shapes.rock import rock

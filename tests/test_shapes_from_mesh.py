@@ -12,7 +12,7 @@ import trimesh
 
 from granpack.config import load_config
 from granpack.errors import InputError
-from granpack.io.mesh_files import MeshFileError, read_mesh
+from granpack.shapes.mesh_files import MeshFileError, read_mesh
 from granpack.mixture import Mixture, shape_counts
 from granpack.shapes import Pinacoid
 from granpack.shapes.from_mesh import grain_from_mesh, population_grains
@@ -20,7 +20,7 @@ from granpack.shapes.reduction import ASPECT_TOLERANCE, MOMENT_TOLERANCE, hull_d
 from granpack.shapes.sizes import aspect_ratios
 from granpack.simulation import run_packing
 
-from test_io_mesh_files import write_ascii_stl
+from test_shapes_mesh_files import write_ascii_stl
 
 
 def noisy_ellipsoid(rng, axes=(3.0, 2.2, 1.5), subdivisions=3, noise=0.02) -> trimesh.Trimesh:

@@ -95,7 +95,7 @@ def every_kind(tmp_path) -> dict:
     """One shape of each kind: from a file (its hull), reduced, a rock, a pinacoid of an aspect class."""
     from test_shapes_from_mesh import noisy_ellipsoid
 
-    from granpack.io.mesh_files import read_mesh
+    from granpack.shapes.mesh_files import read_mesh
     from granpack.shapes.from_mesh import grain_from_mesh
 
     noisy_ellipsoid(np.random.default_rng(5)).export(tmp_path / "scan.stl")

@@ -370,7 +370,7 @@ class PopulationConfig(_Model):
             raise ValueError("required for shape 'mesh': a list of mesh files or glob patterns (STL, OBJ, PLY, OFF)")
         if info.data.get("max_vertices") is None or info.data.get("min_convexity") is None:
             return files  # another field is invalid and is reported instead
-        from granpack.io.mesh_files import MeshFileError, expand_files
+        from granpack.shapes.mesh_files import MeshFileError, expand_files
         from granpack.shapes.from_mesh import population_grains
 
         base = (info.context or {}).get("base_dir") or Path.cwd()

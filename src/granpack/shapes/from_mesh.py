@@ -5,7 +5,7 @@ file's points (granpack's grains are convex); its **convexity** is the volume th
 over the hull's volume, 1 for a convex surface, and what the hull adds to a grain. A hull of more
 than ``max_vertices`` vertices is reduced (:mod:`granpack.shapes.reduction`), scaled back to the
 hull's volume, and the deviations of its principal moments and aspect ratios from the hull's are
-kept. The hull's vertices keep the file's order (:mod:`granpack.io.mesh_files`), so a hull that
+kept. The hull's vertices keep the file's order (:mod:`granpack.shapes.mesh_files`), so a hull that
 needs no reduction is the :class:`~granpack.shapes.ConvexPolyhedron` of those points, bit for bit.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from granpack.io.mesh_files import MeshFile, MeshFileError, read_mesh
+from granpack.shapes.mesh_files import MeshFile, MeshFileError, read_mesh
 from granpack.shapes.polyhedron import ConvexPolyhedron
 from granpack.shapes.reduction import (ASPECT_TOLERANCE, MOMENT_TOLERANCE, Deviations, fit_to_hull,
                                       hull_descriptors, reduce_hull)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from granpack.io.mesh_files import MeshFileError, expand_files, read_mesh
+from granpack.shapes.mesh_files import MeshFileError, expand_files, read_mesh
 
 
 def box_mesh(extents=(1.0, 2.0, 3.0)) -> trimesh.Trimesh:
