@@ -8,11 +8,11 @@ import pytest
 
 from granpack.advice import GRADING_REFUSAL, USEFUL_NARROWING, advise, column_warning, refusal
 from granpack.campaign import load_campaign
-from granpack.cli import main
 from granpack.config import load_config, load_config_dict
 from granpack.errors import InputError
 from granpack.mixture import Mixture
 from granpack.simulation import run_packing
+from test_cli import run_main
 
 # a Fuller curve down to 0.001 d poured by 500 grains: a dust of the smallest sizes, no pile
 IMPOSSIBLE = """\
@@ -32,13 +32,6 @@ d_min = 0.001
 d_max = 1.0
 exponent = 0.5
 """
-
-
-def run_main(argv, capsys) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    out, err = capsys.readouterr()
-    return info.value.code, out, err
 
 
 def test_an_impossible_grading_is_refused_in_one_line_by_check_and_run_alike(tmp_path, capsys):

@@ -20,6 +20,7 @@ from granpack.shapes.reduction import ASPECT_TOLERANCE, MOMENT_TOLERANCE, hull_d
 from granpack.shapes.sizes import aspect_ratios
 from granpack.simulation import run_packing
 
+from test_cli import run_main
 from test_shapes_mesh_files import write_ascii_stl
 
 
@@ -188,18 +189,17 @@ def write_obj(path, vertices, triangles) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
-def test_an_isometric_pinacoid_from_a_file_packs_as_the_built_in_one(tmp_path):
-    """Written with its vertex list (OBJ) the pinacoid is the built-in one bit for bit, and so is its
-    packing; from an STL, which has no vertex list, it is the same body with its vertices in another
-    order (the order in which the triangles bring them)."""
-    size, body = exact_size_pinacoid()
+def pinacoid_corners(body) -> np.ndarray:
+    """The vertices of a pinacoid body in the order of the vertex table of docs/method/grains.md."""
     L, G, E, ridge = body.length, body.width, body.thickness, body.ridge
-    corners = np.array([[L / 2, G / 2, 0.0], [-L / 2, G / 2, 0.0], [-L / 2, -G / 2, 0.0], [L / 2, -G / 2, 0.0],
-                        [ridge / 2, 0.0, E / 2], [-ridge / 2, 0.0, E / 2], [ridge / 2, 0.0, -E / 2],
-                        [-ridge / 2, 0.0, -E / 2]])  # the vertex table of docs/method/grains.md, in its order
-    write_obj(tmp_path / "pinacoid.obj", corners, pinacoid_triangles(body))
-    write_ascii_stl(tmp_path / "pinacoid.stl", corners, pinacoid_triangles(body))
-    common = f"""seed = 5
+    return np.array([[L / 2, G / 2, 0.0], [-L / 2, G / 2, 0.0], [-L / 2, -G / 2, 0.0], [L / 2, -G / 2, 0.0],
+                     [ridge / 2, 0.0, E / 2], [-ridge / 2, 0.0, E / 2], [ridge / 2, 0.0, -E / 2],
+                     [-ridge / 2, 0.0, -E / 2]])
+
+
+def pinacoid_run(size: float) -> str:
+    """A short run of 24 grains of ``size`` (seed 5, to t = 2): its population's shape keys follow."""
+    return f"""seed = 5
 n_particles = 24
 lateral_size = 4.0
 [equilibrium]
@@ -209,6 +209,17 @@ check_interval = 0.1
 size = {size!r}
 volume_fraction = 1.0
 """
+
+
+def test_an_isometric_pinacoid_from_a_file_packs_as_the_built_in_one(tmp_path):
+    """Written with its vertex list (OBJ) the pinacoid is the built-in one bit for bit, and so is its
+    packing; from an STL, which has no vertex list, it is the same body with its vertices in another
+    order (the order in which the triangles bring them)."""
+    size, body = exact_size_pinacoid()
+    corners = pinacoid_corners(body)  # the vertex table of docs/method/grains.md, in its order
+    write_obj(tmp_path / "pinacoid.obj", corners, pinacoid_triangles(body))
+    write_ascii_stl(tmp_path / "pinacoid.stl", corners, pinacoid_triangles(body))
+    common = pinacoid_run(size)
     (tmp_path / "built_in.toml").write_text(common + 'shape = "pinacoid"\n')
     (tmp_path / "from_file.toml").write_text(common + 'shape = "mesh"\nfiles = ["pinacoid.obj"]\n')
     (tmp_path / "from_stl.toml").write_text(common + 'shape = "mesh"\nfiles = ["pinacoid.stl"]\n')
@@ -240,23 +251,11 @@ def test_from_an_stl_the_pinacoid_packs_as_the_built_in_one_given_in_the_stl_ver
     normal = np.cross(first[1] - first[0], first[2] - first[0])
     side = (body.vertices - first[0]) @ normal
     assert side.min() < 0 < side.max()  # the plane of the first three vertices cuts the body: no face
-    L, G, E, ridge = body.length, body.width, body.thickness, body.ridge
-    corners = np.array([[L / 2, G / 2, 0.0], [-L / 2, G / 2, 0.0], [-L / 2, -G / 2, 0.0], [L / 2, -G / 2, 0.0],
-                        [ridge / 2, 0.0, E / 2], [-ridge / 2, 0.0, E / 2], [ridge / 2, 0.0, -E / 2],
-                        [-ridge / 2, 0.0, -E / 2]])
+    corners = pinacoid_corners(body)
     write_ascii_stl(tmp_path / "pinacoid.stl", corners, pinacoid_triangles(body))
     stl_order = read_mesh(tmp_path / "pinacoid.stl").vertices
     assert sorted(map(tuple, stl_order)) == sorted(map(tuple, corners))  # the same points, to the bit
-    common = f"""seed = 5
-n_particles = 24
-lateral_size = 4.0
-[equilibrium]
-max_time = 2.0
-check_interval = 0.1
-[[populations]]
-size = {size!r}
-volume_fraction = 1.0
-"""
+    common = pinacoid_run(size)
     (tmp_path / "from_stl.toml").write_text(common + 'shape = "mesh"\nfiles = ["pinacoid.stl"]\n')
     (tmp_path / "built_in.toml").write_text(common + 'shape = "pinacoid"\n')
     listed = ", ".join("[{!r}, {!r}, {!r}]".format(*(float(x) for x in v)) for v in stl_order)
@@ -269,15 +268,6 @@ volume_fraction = 1.0
         assert np.array_equal(fa.log[f"granpack/{key}"], fb.log[f"granpack/{key}"]), key
     assert len(fa.log["contacts/body_i"]) > 10  # the grains have met
     assert not np.array_equal(fa.log["granpack/position"], fc.log["granpack/position"])  # the order tells
-
-
-def run_main(argv, capsys) -> tuple[int, str, str]:
-    from granpack.cli import main
-
-    with pytest.raises(SystemExit) as info:
-        main(argv)
-    out, err = capsys.readouterr()
-    return int(info.value.code or 0), out, err
 
 
 def test_check_prints_each_shape_and_a_bad_file_stops_check_and_run(three_grains, capsys):
