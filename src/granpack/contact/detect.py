@@ -94,6 +94,26 @@ def _axis_support(shapes: ShapeTable) -> np.ndarray:
     return out
 
 
+def _axis_extent(shapes: ShapeTable) -> np.ndarray:
+    """``(NA, 2)`` least and largest ``a . v`` over each kind's vertices ``v`` along each of its
+    face axes ``a``, d."""
+    out = np.zeros((len(shapes.face_axes), 2))
+    for k in range(shapes.n_kinds):
+        v = shapes.vertices[shapes.vertex_start[k]:shapes.vertex_start[k + 1]]
+        rows = slice(shapes.axis_start[k], shapes.axis_start[k + 1])
+        if len(v):
+            h = shapes.face_axes[rows] @ v.T
+            out[rows, 0], out[rows, 1] = h.min(axis=1), h.max(axis=1)
+    return out
+
+
+def _edge_cosines(shapes: ShapeTable) -> np.ndarray:
+    """``(NE,)`` per edge, the cosine ``n1 . n2`` between the normals of its two faces."""
+    kind_of_edge = np.repeat(np.arange(shapes.n_kinds), np.diff(shapes.edge_start))
+    normals = shapes.face_normals[shapes.face_start[kind_of_edge][:, None] + shapes.edge_faces]
+    return np.einsum("ij,ij->i", normals[:, 0], normals[:, 1])
+
+
 class _Tables:
     """Kernel tables derived once per :class:`ShapeTable`."""
 
@@ -106,13 +126,15 @@ class _Tables:
         self.edge_dir = _edge_direction_index(shapes)
         self.half_start, self.half = _antipodal_halves(shapes)
         self.axis_support = _axis_support(shapes)
+        self.axis_extent = _axis_extent(shapes)
+        self.edge_cos = _edge_cosines(shapes)
         self.d_min = 2.0 * float(shapes.radius.min())
         self.d_max = 2.0 * float(shapes.radius.max())
 
     def tab(self, kind: np.ndarray) -> tuple:
         s = self.shapes
         return (s.vertex_start, s.face_start, s.face_offsets, s.face_vertex_start, s.face_vertices, s.edge_start,
-                s.edges, self.edge_dir, kind)
+                s.edges, self.edge_dir, s.edge_faces, kind)
 
 
 class Detector:
@@ -194,7 +216,8 @@ class Detector:
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
         args = (state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
-                tables.half_start, tables.half, shapes.axis_start, tables.axis_support, self.verlet.pair_start,
+                tables.half_start, tables.half, shapes.axis_start, tables.axis_support, tables.axis_extent,
+                tables.edge_cos, self.verlet.pair_start,
                 self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
                 tables.max_points, prev_i, prev_j, prev_n)
         bounds = _row_ranges(self.verlet.pair_start, self.threads)

@@ -94,7 +94,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
     ``gp``, and the normal from A to B; count 0 means no contact within ``alert``.
     """
     pv, pf, pa, pd, rv, fn, ax, dr = geo
-    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
+    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, edge_faces, kind = tab
     _, _, _, _, _, _, buf, buf2, X, h = scr
     a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
     sfa, kfa, gfa, sfb, kfb, gfb = sat.sfa, sat.kfa, sat.gfa, sat.sfb, sat.kfb, sat.gfb
@@ -232,7 +232,7 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
     closest points; centre inside B: the face of least depth gives the normal and the gap).
     """
     pv, pf, pa, pd, rv, fn, ax, dr = geo
-    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, kind = tab
+    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, edge_faces, kind = tab
     W, ia, ib, lam, tmp, idx, _, _, _, _ = scr
     b0, b1 = pv[b], pv[b + 1]
     st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, rv, b0, b1, ox, oy, oz, alert + ra, W, ia, ib, lam, tmp)
@@ -296,8 +296,27 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 
 @jit
-def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support, pair_start,
-                 pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i, prev_j, prev_n, i0, i1):
+def _general_tables(tab, axis_extent, edge_cos, n_kinds):
+    """The ``gauss`` tables and scratch of :func:`~granpack.contact.separating_axes._sat` for
+    polyhedra that are not both centrally symmetric: ``(edge_start, edge_faces, edge_dir,
+    edge_cos, axis_extent, inradius, W, Z, sel)``, with ``inradius[k]`` the radius of the largest
+    ball about the centre inside kind ``k`` (its smallest face offset, d; 0 for a sphere), which
+    prunes the axes of every pair."""
+    face_start, face_offsets, edge_start = tab[1], tab[2], tab[5]
+    inradius = np.zeros(n_kinds)
+    for k in range(n_kinds):
+        if face_start[k + 1] > face_start[k]:
+            inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
+    max_edges = max(np.diff(edge_start).max(), 1)
+    max_faces = max(np.diff(face_start).max(), 1)
+    return (edge_start, tab[8], tab[7], edge_cos, axis_extent, inradius, np.empty((2, max_faces)),
+            np.empty((4, max_edges)), np.empty(max_edges, np.int64))
+
+
+@jit
+def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support,
+                 axis_extent, edge_cos, pair_start, pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i,
+                 prev_j, prev_n, i0, i1):
     """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
 
     Rows are independent (a pair belongs to its row ``i``, the previous normals are looked up by
@@ -309,12 +328,18 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         position: ``(N, 3)`` centres (x, y wrapped into the cell), d.
         kind: ``(N,)`` kind index; is_sphere, radius: ``(K,)`` per kind (radius in d).
         geo: :func:`world_geometry` output; tab: ``(vertex_start, face_start, face_offsets,
-            face_vertex_start, face_vertices, edge_start, edges, edge_dir, kind)``.
+            face_vertex_start, face_vertices, edge_start, edges, edge_dir, edge_faces, kind)``
+            (``edge_dir``: each edge's local index in its kind's edge directions).
         half_start, half: ``(K+1,)`` CSR over kinds of the local indices of one vertex of each
             antipodal pair for centrally symmetric polyhedra (empty block otherwise): the faster
             separating-axis test of :func:`~granpack.contact.separating_axes._sat`.
         axis_start, axis_support: ``(K+1,)``, ``(NA,)`` the shape table's face-axis rows and the
             support ``max_v |a . v|`` of each kind along its own face axes ``a``, d.
+        axis_extent: ``(NA, 2)`` the least and the largest ``a . v`` over each kind's vertices
+            ``v`` along its own face axes ``a``, d (the face-axis bound of
+            :func:`~granpack.contact.separating_axes._sat` for bodies that are not both
+            centrally symmetric).
+        edge_cos: ``(NE,)`` per edge, the cosine between the normals of its two faces.
         pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
         pair_axis: ``(C,)`` per candidate pair of polyhedra, the code of the axis that separated
             it at the previous call (-1: none), read and updated (see
@@ -356,12 +381,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
-    # radius of the largest centred ball inside each polyhedron kind (edge-axis pruning in _sat)
-    face_start, face_offsets = tab[1], tab[2]
-    inradius = np.zeros(len(radius))
-    for k in range(len(radius)):
-        if face_start[k + 1] > face_start[k]:
-            inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
+    gauss = _general_tables(tab, axis_extent, edge_cos, len(radius))
+    inradius = gauss[5]
     m = 0
     npt = 0
     tested = 0
@@ -425,7 +446,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             elif is_sphere[ki]:
                 cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
             else:
-                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, a, inradius[kj] + inradius[ki],
+                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
                            _KEEP_BAND * eps_f, X, Y, pair_axis[q])
                 pair_axis[q] = sat.axis
                 if sat.far:

@@ -158,7 +158,7 @@ def _separated(axis):
 
 
 @jit(inline="always")
-def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cached):
+def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X, Y, cached):
     """Separating-axis test between polyhedra ``a`` (A, centred) and ``b`` (B, offset ``o``, d).
 
     ``geo`` is the :func:`world_geometry` output, ``ka``, ``kb`` the two kinds. The vertices of
@@ -172,20 +172,22 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cac
     shape; ``X`` is then filled only for a pair that is not separated. The two paths are written
     out at each axis on purpose (docs/design-notes.md, "Separating-axis test: speed").
 
+    Axes: both bodies' face axes, then the edge-edge axes: every pair of edge directions of two
+    symmetric bodies (:func:`_direction_pair_axes`), otherwise the pairs of edges that make a
+    face of the Minkowski difference (:func:`_minkowski_edge_axes`, ``gauss`` its tables). Either
+    way the best separation of an overlapping pair is the largest over all directions, minus the
+    penetration depth; that of a separated pair is a lower bound of the distance (the manifold's
+    gaps are exact: :mod:`granpack.contact.narrowphase`).
+
     Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
-    smallest face offset) about its centre, B likewise, so along the axis ``u = c / |c|`` of an
-    edge-direction cross product ``c``
+    smallest face offset) about its centre, B likewise, so along an edge-edge axis ``u``
 
     .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
 
     and an axis whose bound is below the best separation found so far minus ``margin`` (d, the
     widest hysteresis band, ``_KEEP_BAND eps_f`` of :mod:`granpack.contact.narrowphase`) can
     neither separate the pair nor be a manifold candidate, so its projections are skipped
-    (``rin = rho_A + rho_B``, d). The test is first made without the square root,
-    :math:`(c \\cdot o)^2 < (t + \\rho_A + \\rho_B)^2 |c|^2` with ``t`` the threshold lowered by
-    1e-12 d (round-off), and without the cross product (unit directions:
-    :math:`c \\cdot o = e_A \\cdot (e_B \\times o)`, :math:`|c|^2 = 1 - (e_A \\cdot e_B)^2`), so
-    most pruned axes are never formed.
+    (``rin = rho_A + rho_B``, d; :func:`_unit_cross`).
 
     ``cached`` is the axis that separated the pair at the previous call (code below, -1 if
     none): it is tried first, and a pair it still separates by more than ``alert`` (d) costs one
@@ -201,7 +203,6 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cac
     half_start, half, axis_start, support = symmetric
     a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
     aa0, aa1, ab0, ab1 = pa[a], pa[a + 1], pa[b], pa[b + 1]
-    da0, da1, db0, db1 = pd[a], pd[a + 1], pd[b], pd[b + 1]
     inf = math.inf
     na = a1 - a0
     nb = b1 - b0
@@ -221,25 +222,12 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cac
         _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     nfa = aa1 - aa0
     nfb = ab1 - ab0
-    ndb = db1 - db0
     # cheap first tries: the cached axis, then the centre-to-centre direction
     for attempt in range(2):
         if attempt == 0:
             if cached < 0:
                 continue
-            if cached < nfa + nfb:
-                r = aa0 + cached if cached < nfa else ab0 + cached - nfa
-                ux, uy, uz = ax[r, 0], ax[r, 1], ax[r, 2]
-            else:
-                i = da0 + (cached - nfa - nfb) // ndb
-                j = db0 + (cached - nfa - nfb) % ndb
-                cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
-                cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
-                cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
-                c = cx * cx + cy * cy + cz * cz
-                if c > 1e-12:  # the two edges may have turned parallel since
-                    c = 1.0 / math.sqrt(c)
-                ux, uy, uz = cx * c, cy * c, cz * c
+            ux, uy, uz = _axis_of_code(geo, a, b, cached, nfa, nfb)
         else:
             dd = math.sqrt(ox * ox + oy * oy + oz * oz)
             if dd == 0.0:
@@ -252,64 +240,129 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cac
             s, _ = _separation(X, na, nb, ux, uy, uz)
         if s > alert:
             return _separated(cached if attempt == 0 else -1)
+    if not sym:
+        extent, inradius = gauss[4], gauss[5]
+        far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert)
+        if far:
+            return _separated(kfa - aa0)
+        far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert)
+        if far:
+            return _separated(nfa + kfb - ab0)
+        far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb,
+                                                                 alert, max(sfa, sfb), margin, rin)
+        if far:
+            return _separated(nfa + nfb + code)
+        return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
-        if sym:
-            s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2], support[sa0 + k - aa0],
-                               _half_support(Y, nha, nha + nhb, ax[k, 0], ax[k, 1], ax[k, 2]))
-        else:
-            s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2], support[sa0 + k - aa0],
+                           _half_support(Y, nha, nha + nhb, ax[k, 0], ax[k, 1], ax[k, 2]))
         if s > alert:
             return _separated(k - aa0)
         if s > sfa:
             sfa, kfa, gfa = s, k, g
     sfb, kfb, gfb = -inf, -1, 1.0
     for k in range(ab0, ab1):
-        if sym:
-            s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2],
-                               _half_support(Y, 0, nha, ax[k, 0], ax[k, 1], ax[k, 2]), support[sb0 + k - ab0])
-        else:
-            s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2],
+                           _half_support(Y, 0, nha, ax[k, 0], ax[k, 1], ax[k, 2]), support[sb0 + k - ab0])
         if s > alert:
             return _separated(nfa + k - ab0)
         if s > sfb:
             sfb, kfb, gfb = s, k, g
-    se, ie, je, ex, ey, ez = -inf, -1, -1, 0.0, 0.0, 0.0
-    # pruning threshold on |c . o| / |c|, updated when the best separation improves
-    t = max(sfa, sfb) - margin + rin - 1e-12
-    for j in range(db0, db1):
-        # w = e_B x o, so that (e_A x e_B) . o = e_A . w; |e_A x e_B|^2 = 1 - (e_A . e_B)^2
-        wx = dr[j, 1] * oz - dr[j, 2] * oy
-        wy = dr[j, 2] * ox - dr[j, 0] * oz
-        wz = dr[j, 0] * oy - dr[j, 1] * ox
-        for i in range(da0, da1):
-            cos = dr[i, 0] * dr[j, 0] + dr[i, 1] * dr[j, 1] + dr[i, 2] * dr[j, 2]
-            c2 = 1.0 - cos * cos
-            if c2 < 1e-12:
-                continue
-            co = dr[i, 0] * wx + dr[i, 1] * wy + dr[i, 2] * wz
-            if t > 0.0 and co * co < t * t * c2:
-                continue
-            cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
-            cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
-            cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
-            c = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
-            cx *= c
-            cy *= c
-            cz *= c
-            if sym:
-                s, g = _signed_gap(ox, oy, oz, cx, cy, cz, _half_support(Y, 0, nha, cx, cy, cz),
-                                   _half_support(Y, nha, nha + nhb, cx, cy, cz))
-            else:
-                s, g = _separation(X, na, nb, cx, cy, cz)
-            if s > alert:
-                return _separated(nfa + nfb + (i - da0) * ndb + j - db0)
-            if s > se:
-                se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
-                t = max(sfa, sfb, se) - margin + rin - 1e-12
-    if sym:
-        _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
+    far, se, ie, je, ex, ey, ez, code = _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert,
+                                                             max(sfa, sfb), margin, rin)
+    if far:
+        return _separated(nfa + nfb + code)
+    _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
+
+
+@jit(inline="always")
+def _arc_max(a1, a2, c, slack):
+    """Upper bound of ``u . o`` over the arc of unit vectors ``u`` from ``n1`` to ``n2`` (a great
+    circle's arc shorter than a half-turn, an edge's on the Gauss map), ``o`` any vector, from
+    :math:`a_k = n_k \\cdot o` and :math:`c = n_1 \\cdot n_2`.
+
+    The projection of ``o`` on the arc's plane points inside the arc iff
+    :math:`a_2 - c a_1 \\ge 0` and :math:`a_1 - c a_2 \\ge 0`; the largest value is then its
+    length, :math:`\\sqrt{(a_1^2 + a_2^2 - 2 c a_1 a_2) / (1 - c^2)}`, otherwise
+    :math:`\\max(a_1, a_2)`; raised by ``slack`` (d, the caller's :math:`10^{-9} |o|`, for the
+    round-off of ``c`` and ``a``). An arc with :math:`1 - c^2 < 10^{-6}` takes the coarser
+    :math:`\\max(a_1, a_2) / \\cos(\\theta / 2)`, :math:`\\cos(\\theta/2) = \\sqrt{(1 + c) / 2}`
+    (a point of the arc is :math:`(\\sin(\\theta - \\varphi) n_1 + \\sin\\varphi\\, n_2) / \\sin\\theta`,
+    whose weights sum to :math:`\\cos(\\varphi - \\theta/2) / \\cos(\\theta/2) \\in [1, 1 / \\cos(\\theta/2)]`),
+    or :math:`\\max(a_1, a_2)` when that is negative.
+    """
+    den = 1.0 - c * c
+    top = max(a1, a2)
+    if den < 1e-6:
+        return (top / math.sqrt(0.5 * (1.0 + c)) if top > 0.0 else top) + slack
+    if a2 - c * a1 >= 0.0 and a1 - c * a2 >= 0.0:
+        return math.sqrt(max(a1 * a1 + a2 * a2 - 2.0 * c * a1 * a2, 0.0) / den) + slack
+    return top + slack
+
+
+@jit(inline="always")
+def _face_axes(X, na, nb, ax, k0, k1, dx, dy, dz, extent, e0, rho, alert):
+    """Best of one body P's face axes (world rows ``k0:k1`` of ``ax``) for the vertex block ``X``
+    of :func:`_sat`; the other body Q is at ``d`` from P (d).
+
+    P spans ``[lo, hi]`` along its axis ``a`` about its centre (``extent[e0 + k - k0]``, d, a
+    constant of the shape) and Q contains the ball of radius ``rho`` (d) about its centre, so the
+    separation along ``a`` is at most
+
+    .. math:: \\max(a \\cdot d - hi,\\; lo - a \\cdot d) - \\rho ;
+
+    an axis whose bound is below the best separation found so far (less 1e-12 d) is not
+    projected on, and the axis of largest bound is tried first. The result is that of projecting
+    on every axis in row order: among equal separations the first row is kept.
+
+    Returns ``(far, s, k, g)``: ``far`` when axis ``k`` separates by more than ``alert`` (d);
+    otherwise the best separation ``s`` (d), its row ``k`` and the side ``g = +-1`` of B.
+    """
+    first, top = k0, -math.inf
+    for k in range(k0, k1):
+        ad = ax[k, 0] * dx + ax[k, 1] * dy + ax[k, 2] * dz
+        bound = max(ad - extent[e0 + k - k0, 1], extent[e0 + k - k0, 0] - ad)
+        if bound > top:
+            first, top = k, bound
+    sf, kf, gf = -math.inf, -1, 1.0
+    for r in range(k0 - 1, k1):
+        k = first if r < k0 else r
+        if r >= k0:
+            if k == first:
+                continue
+            ad = ax[k, 0] * dx + ax[k, 1] * dy + ax[k, 2] * dz
+            if max(ad - extent[e0 + k - k0, 1], extent[e0 + k - k0, 0] - ad) - rho < sf - 1e-12:
+                continue
+        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        if s > alert:
+            return True, s, k, g
+        if s > sf or (s == sf and k < kf):
+            sf, kf, gf = s, k, g
+    return False, sf, kf, gf
+
+
+@jit(inline="always")
+def _axis_of_code(geo, a, b, code, nfa, nfb):
+    """World unit axis of the axis code ``code >= 0`` of :func:`_sat` for the pair ``(a, b)``
+    (``nfa``, ``nfb`` the two face-axis counts): a face axis, or the normalised cross product
+    ``c`` of the two edge directions (``c |c|^2``, a vector too short to separate anything, when
+    they have turned parallel, ``|c|^2 <= 1e-12``)."""
+    pv, _, pa, pd, rv, _, ax, dr = geo
+    if code < nfa + nfb:
+        r = pa[a] + code if code < nfa else pa[b] + code - nfa
+        return ax[r, 0], ax[r, 1], ax[r, 2]
+    ndb = pd[b + 1] - pd[b]
+    i = pd[a] + (code - nfa - nfb) // ndb
+    j = pd[b] + (code - nfa - nfb) % ndb
+    cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
+    cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
+    cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
+    c = cx * cx + cy * cy + cz * cz
+    if c > 1e-12:  # the two edges may have turned parallel since
+        c = 1.0 / math.sqrt(c)
+    return cx * c, cy * c, cz * c
 
 
 @jit(inline="always")
@@ -322,3 +375,170 @@ def _gather(rv, a0, a1, b0, b1, ox, oy, oz, X):
         X[0, na + k], X[1, na + k], X[2, na + k] = ox + rv[b0 + k, 0], oy + rv[b0 + k, 1], oz + rv[b0 + k, 2]
 
 
+
+
+@jit(inline="always")
+def _unit_cross(dr, i, j, ox, oy, oz, t):
+    """The unit axis ``c / |c|``, ``c = e_i x e_j``, of the world edge directions ``dr[i]``,
+    ``dr[j]``, or ``ok`` False when the axis is not worth a projection: the directions are
+    parallel (``|c|^2 < 1e-12``), or ``t > 0`` (d) and :math:`(c \\cdot o)^2 < t^2 |c|^2`, i.e. the
+    bound :math:`|u \\cdot o|` on the separation plus ``rho_A + rho_B`` (see :func:`_sat`) is
+    below ``t``. Computed as :math:`c \\cdot o = e_i \\cdot (e_j \\times o)`,
+    :math:`|c|^2 = 1 - (e_i \\cdot e_j)^2`, so that a pruned axis is never formed.
+
+    Returns ``(ok, ux, uy, uz)``.
+    """
+    cos = dr[i, 0] * dr[j, 0] + dr[i, 1] * dr[j, 1] + dr[i, 2] * dr[j, 2]
+    c2 = 1.0 - cos * cos
+    if c2 < 1e-12:
+        return False, 0.0, 0.0, 0.0
+    wx = dr[j, 1] * oz - dr[j, 2] * oy
+    wy = dr[j, 2] * ox - dr[j, 0] * oz
+    wz = dr[j, 0] * oy - dr[j, 1] * ox
+    co = dr[i, 0] * wx + dr[i, 1] * wy + dr[i, 2] * wz
+    if t > 0.0 and co * co < t * t * c2:
+        return False, 0.0, 0.0, 0.0
+    cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
+    cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
+    cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
+    c = 1.0 / math.sqrt(cx * cx + cy * cy + cz * cz)
+    return True, cx * c, cy * c, cz * c
+
+
+@jit(inline="always")
+def _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert, best, margin, rin):
+    """Edge-edge axes of two centrally symmetric bodies: every pair of their edge directions.
+
+    Each has 3 to 6 directions (pinacoids: 6), so trying every pair costs less than finding the
+    pairs that are faces of the Minkowski difference. ``Y`` holds the half vertices of
+    :func:`_sat`. An axis whose bound (:func:`_unit_cross`) is below ``t = max(best, se) - margin
+    + rin - 1e-12`` (d; ``best`` the best face separation, ``se`` the best edge separation found
+    so far, ``margin`` and ``rin`` those of :func:`_sat`) is skipped.
+
+    Returns ``(far, se, ie, je, ex, ey, ez, code)`` as :func:`_minkowski_edge_axes`.
+    """
+    pv, _, pa, pd, rv, _, ax, dr = geo
+    da0, da1, db0, db1 = pd[a], pd[a + 1], pd[b], pd[b + 1]
+    ndb = db1 - db0
+    se, ie, je, ex, ey, ez = -math.inf, -1, -1, 0.0, 0.0, 0.0
+    t = best - margin + rin - 1e-12
+    for j in range(db0, db1):
+        for i in range(da0, da1):
+            ok, cx, cy, cz = _unit_cross(dr, i, j, ox, oy, oz, t)
+            if not ok:
+                continue
+            s, g = _signed_gap(ox, oy, oz, cx, cy, cz, _half_support(Y, 0, nha, cx, cy, cz),
+                               _half_support(Y, nha, nha + nhb, cx, cy, cz))
+            if s > alert:
+                return True, s, i - da0, j - db0, cx, cy, cz, (i - da0) * ndb + j - db0
+            if s > se:
+                se, ie, je, ex, ey, ez = s, i - da0, j - db0, g * cx, g * cy, g * cz
+                t = max(best, se) - margin + rin - 1e-12
+    return False, se, ie, je, ex, ey, ez, -1
+
+
+@jit(inline="always")
+def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert, best, margin, rin):
+    """Edge-edge axes of two polyhedra: the pairs of edges whose cross product is the normal of a
+    face of the Minkowski difference ``A - B`` (Gregorius, "The Separating Axis Test between
+    Convex Polyhedra", GDC 2013).
+
+    The separation ``s(u)`` along every unit vector is at most the largest over the face normals
+    of ``A - B``: A's face normals, B's, and the cross products of an edge of A and an edge of B
+    whose arcs on the Gauss map cross, A's arc joining the normals ``n1``, ``n2`` of the edge's two
+    faces, B's joining ``-m1``, ``-m2`` (a vertex of ``A - B`` is a vertex of A minus one of B,
+    and ``s`` along a direction inside its normal cone is at most its largest value at the
+    cone's corners when the bodies overlap). The arcs cross iff, with ``c = -m1``, ``d = -m2``,
+    ``p = n2 x n1``, ``q = d x c``:
+
+    .. math:: (c \\cdot p)(d \\cdot p) < 0, \\quad (n_1 \\cdot q)(n_2 \\cdot q) < 0, \\quad
+              (c \\cdot p)(n_2 \\cdot q) > 0
+
+    (``c``, ``d`` on either side of A's great circle, ``n1``, ``n2`` of B's, both arcs in one
+    hemisphere): four dot products per pair of edges, so only the few crossing pairs are
+    projected on. The axis of a crossing pair is formed, pruned (:func:`_unit_cross`, threshold
+    ``max(best, se) - margin + rin - 1e-12``, d) and measured exactly as for every pair of
+    directions (:func:`_direction_pair_axes`), from the two edges' direction rows, with ``X`` the
+    vertex block of :func:`_sat`; among equal separations the pair of directions ``(i, j)``
+    first in ``j``-major order is kept.
+
+    Whole edges are pruned first by the same bound: along the axis of a crossing pair, oriented
+    so that A's edge is A's support, :math:`s(u) \\le u \\cdot o - \\rho_A - \\rho_B` with ``u`` on
+    both arcs, so an edge of A (of B) whose arc's largest :math:`u \\cdot o` (:func:`_arc_max`; B's
+    arc taken negated) is below the threshold crosses no arc worth trying: only the edges facing
+    the other body are paired.
+
+    ``gauss`` is ``(edge_start, edge_faces, edge_dir, edge_cos, extent, inradius, W, Z, sel)``:
+    the shape table's edge rows per kind and each edge's two faces (local indices), each edge's
+    local direction index and the cosine between its two face normals, the extents of
+    :func:`_face_axes` and the radius ``rho`` of each kind, and scratch ``W`` (``(2, >= the
+    larger face count)``), ``Z`` (``(4, >= B's edge count)``) and ``sel`` (``(>= B's edge
+    count,)``, int).
+
+    Returns ``(far, se, ie, je, ex, ey, ez, code)``: ``far`` when an axis separates by more than
+    ``alert`` (d), its code ``i ndb + j`` (local direction indices); otherwise the best
+    separation ``se`` (d; ``-inf`` if no crossing pair), its direction indices and the unit axis
+    oriented from A to B.
+    """
+    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    edge_start, edge_faces, edge_dir, edge_cos, _, _, W, Z, sel = gauss
+    fa0, fb0, da0, db0 = pf[a], pf[b], pd[a], pd[b]
+    ea0, ea1, eb0, eb1 = edge_start[ka], edge_start[ka + 1], edge_start[kb], edge_start[kb + 1]
+    ndb = pd[b + 1] - db0
+    t = best - margin + rin - 1e-12
+    slack = 1e-9 * math.sqrt(ox * ox + oy * oy + oz * oz)
+    for f in range(pf[a + 1] - fa0):
+        W[0, f] = fn[fa0 + f, 0] * ox + fn[fa0 + f, 1] * oy + fn[fa0 + f, 2] * oz
+    for f in range(pf[b + 1] - fb0):
+        W[1, f] = -(fn[fb0 + f, 0] * ox + fn[fb0 + f, 1] * oy + fn[fb0 + f, 2] * oz)
+    nsel = 0
+    for e in range(eb1 - eb0):
+        f1, f2 = edge_faces[eb0 + e, 0], edge_faces[eb0 + e, 1]
+        # B's arc is that of -m1, -m2: the largest u . o over it is the largest of -m . o over m1..m2
+        Z[3, e] = _arc_max(W[1, f1], W[1, f2], edge_cos[eb0 + e], slack)
+        m1, m2 = fb0 + f1, fb0 + f2
+        if Z[3, e] < t:
+            continue
+        # q = (-m2) x (-m1) = m2 x m1
+        Z[0, e] = fn[m2, 1] * fn[m1, 2] - fn[m2, 2] * fn[m1, 1]
+        Z[1, e] = fn[m2, 2] * fn[m1, 0] - fn[m2, 0] * fn[m1, 2]
+        Z[2, e] = fn[m2, 0] * fn[m1, 1] - fn[m2, 1] * fn[m1, 0]
+        sel[nsel] = e
+        nsel += 1
+    se, ie, je, ex, ey, ez = -math.inf, -1, -1, 0.0, 0.0, 0.0
+    for ea in range(ea0, ea1):
+        n1 = fa0 + edge_faces[ea, 0]
+        n2 = fa0 + edge_faces[ea, 1]
+        bound = _arc_max(W[0, edge_faces[ea, 0]], W[0, edge_faces[ea, 1]], edge_cos[ea], slack)
+        if bound < t:
+            continue
+        px = fn[n2, 1] * fn[n1, 2] - fn[n2, 2] * fn[n1, 1]
+        py = fn[n2, 2] * fn[n1, 0] - fn[n2, 0] * fn[n1, 2]
+        pz = fn[n2, 0] * fn[n1, 1] - fn[n2, 1] * fn[n1, 0]
+        for r in range(nsel):
+            e = sel[r]
+            if Z[3, e] < t:
+                continue
+            m1 = fb0 + edge_faces[eb0 + e, 0]
+            m2 = fb0 + edge_faces[eb0 + e, 1]
+            cp = -(fn[m1, 0] * px + fn[m1, 1] * py + fn[m1, 2] * pz)
+            dp = -(fn[m2, 0] * px + fn[m2, 1] * py + fn[m2, 2] * pz)
+            if cp * dp >= 0.0:
+                continue
+            n1q = fn[n1, 0] * Z[0, e] + fn[n1, 1] * Z[1, e] + fn[n1, 2] * Z[2, e]
+            n2q = fn[n2, 0] * Z[0, e] + fn[n2, 1] * Z[1, e] + fn[n2, 2] * Z[2, e]
+            if n1q * n2q >= 0.0 or cp * n2q <= 0.0:
+                continue
+            i, j = edge_dir[ea], edge_dir[eb0 + e]
+            ok, cx, cy, cz = _unit_cross(dr, da0 + i, db0 + j, ox, oy, oz, t)
+            if not ok:
+                continue
+            s, g = _separation(X, na, nb, cx, cy, cz)
+            if s > alert:
+                return True, s, i, j, cx, cy, cz, i * ndb + j
+            if s > se or (s == se and (j < je or (j == je and i < ie))):
+                se, ie, je, ex, ey, ez = s, i, j, g * cx, g * cy, g * cz
+                t = max(best, se) - margin + rin - 1e-12
+                if bound < t:
+                    break
+    return False, se, ie, je, ex, ey, ez, -1

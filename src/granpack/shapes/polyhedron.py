@@ -223,6 +223,19 @@ class ConvexPolyhedron(Shape):
         v = self.vertices
         return _unique_directions(v[self.edges[:, 1]] - v[self.edges[:, 0]])
 
+    @cached_property
+    def edge_faces(self) -> np.ndarray:
+        """``(E, 2)`` the indices of the two faces meeting at each edge (rows of ``edges``), the
+        face on whose boundary the edge runs from ``edges[e, 0]`` to ``edges[e, 1]``
+        counter-clockwise first: the edge's arc on the Gauss map joins their normals."""
+        row = {(int(a), int(b)): e for e, (a, b) in enumerate(self.edges)}
+        out = np.empty((len(self.edges), 2), dtype=np.int64)
+        for f, face in enumerate(self.faces):
+            for k in range(len(face)):
+                a, b = int(face[k]), int(face[(k + 1) % len(face)])
+                out[row[(min(a, b), max(a, b))], 0 if a < b else 1] = f
+        return out
+
     def face_kinds(self) -> list[int]:
         """Number of vertices of each face."""
         return [len(f) for f in self.faces]

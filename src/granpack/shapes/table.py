@@ -42,6 +42,8 @@ class ShapeTable:
         face_vertex_start, face_vertices: ``(NF+1,)`` (indexed by global face row), ``(NFV,)``
             local vertex indices, counter-clockwise from outside.
         edge_start, edges: ``(K+1,)``, ``(NE, 2)`` local vertex index pairs.
+        edge_faces: ``(NE, 2)`` local indices of the two faces meeting at each edge (rows of
+            ``edges``).
         axis_start, face_axes: ``(K+1,)``, ``(NA, 3)`` distinct face normals up to sign.
         direction_start, edge_directions: ``(K+1,)``, ``(ND, 3)`` distinct edge directions up to sign.
     """
@@ -60,6 +62,7 @@ class ShapeTable:
     face_vertices: np.ndarray
     edge_start: np.ndarray
     edges: np.ndarray
+    edge_faces: np.ndarray
     axis_start: np.ndarray
     face_axes: np.ndarray
     direction_start: np.ndarray
@@ -84,6 +87,7 @@ class ShapeTable:
         if not all_faces:
             face_vertex_start = np.zeros(1, dtype=np.int64)
         edge_start, edges = _csr([p.edges if p else np.zeros((0, 2), np.int64) for p in poly], 2, np.int64)
+        _, edge_faces = _csr([p.edge_faces if p else np.zeros((0, 2), np.int64) for p in poly], 2, np.int64)
         axis_start, face_axes = _csr([p.face_axes if p else empty3 for p in poly], 3, np.float64)
         direction_start, edge_directions = _csr([p.edge_directions if p else empty3 for p in poly], 3, np.float64)
         return cls(
@@ -101,6 +105,7 @@ class ShapeTable:
             face_vertices=face_vertices,
             edge_start=edge_start,
             edges=edges,
+            edge_faces=edge_faces,
             axis_start=axis_start,
             face_axes=face_axes,
             direction_start=direction_start,
