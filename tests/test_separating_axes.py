@@ -63,7 +63,7 @@ def exhaustive(va, vb, faces_a, faces_b, dirs_a, dirs_b):
     return out
 
 
-def minkowski_best(va, vb, shape_a, shape_b, qa, qb, tol=1e-9):
+def minkowski_best(va, vb, shape_a, shape_b, tol=1e-9):
     """Best separation over the edge pairs ``(e_A, e_B)`` whose axis ``u`` has ``e_A`` in A's
     support set along ``u`` and ``e_B`` in B's along ``-u`` (for one sign of ``u``): the faces of
     the Minkowski difference, found from the vertices alone (no Gauss map)."""
@@ -169,7 +169,7 @@ def test_minkowski_edge_pairs_give_the_exhaustive_separation_and_manifold(pairs)
         sigma = max(sat.sfa, sat.sfb, sat.se)
         # the edge axis is the best over the Minkowski faces (whenever it can matter: within the
         # margin of the best face axis)
-        mink = minkowski_best(va, vb, shapes[ka], shapes[kb], quat[a], quat[b])
+        mink = minkowski_best(va, vb, shapes[ka], shapes[kb])
         if mink >= max(sat.sfa, sat.sfb) - margin:
             assert sat.se == pytest.approx(mink, abs=1e-12)
         if sigma_ref <= 0.0:
