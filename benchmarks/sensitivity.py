@@ -39,7 +39,7 @@ its ``family`` is the factor, its ``share`` the mixture's.
 Usage::
 
     python benchmarks/sensitivity.py configs                 # (re)write benchmarks/validation/configs/
-    benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs (final.gsd too) in the repository
+    benchmarks/validation/run.sh OUT sensitivity 'regime-lmgc_*'  # run, keeping the runs in the repository
     python benchmarks/sensitivity.py csv                      # benchmarks/validation/sensitivity.csv
     python benchmarks/sensitivity.py table                    # its markdown table, a row per cell
     python benchmarks/sensitivity.py status                   # every planned run: finished, checkpointed (at t) or not started
@@ -47,6 +47,7 @@ Usage::
     python benchmarks/sensitivity.py rerun-check RUN_DIR ...  # a time-600 run repeats its study run to t = 300?
     python benchmarks/sensitivity.py drift                    # how far the capped study runs were still settling
     python benchmarks/sensitivity.py thin-beds                # the series as the study's cells would measure them
+    python benchmarks/sensitivity.py bed RUN_DIR ...          # bed.json of a run without a bulk region, from final.gsd
     python benchmarks/sensitivity.py layers RUN_DIR ...       # phi and Q00 layer by layer of final.gsd (phi of the profile without it)
     python benchmarks/sensitivity.py k-deepest RUN_DIR ...    # k beside k with each manifold's points at its deepest overlap (or of a checkpoint.gsd)
     python benchmarks/sensitivity.py layers RUN_DIR ... --figure layers.png   # and their figure
@@ -57,8 +58,8 @@ is the mean of the run's solid-fraction profile over the bed less a skin of ``BE
 the floor and below the surface (the surface: the highest level of the profile above
 ``SURFACE_PHI``), the figure of a bed too thin for a bulk region; ``phi_corrected`` is the bulk
 solid fraction over ``1 + k`` (k: the expansion coefficient in its work form, as the study's).
-A bed without a bulk region has its coordination and order figures over the whole bed, from its
-``final.gsd`` (:func:`bed_figures`).
+A bed without a bulk region has its coordination and order figures over the whole bed, computed
+from its ``final.gsd`` once and kept in its ``bed.json`` (:func:`write_bed_figures`).
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ FIGURE = ROOT / "docs" / "validation" / "figures" / "sensitivity.png"
 BED_SKIN = 1.0
 #: the surface of the bed: the highest level of the profile whose solid fraction is above this
 SURFACE_PHI = 0.3
+#: the file of a run without a bulk region that keeps its bed figures (:func:`write_bed_figures`)
+BED_FILE = "bed.json"
 COLUMNS = ("mixture", "factor", "setting", "seed", "grains", "cell", "status", "t", "phi", "phi_std", "phi_bed", "k",
            "phi_corrected", "N", "Ns", "Nd", "Nt", "Nc", "rattler_fraction", "Q00", "Q22", "cpu_s")
 
@@ -321,13 +324,34 @@ def bed_figures(final: Path, surface: float) -> tuple[dict, dict]:
     return ({"N": c.N, **c.figures, "rattler_fraction": c.rattler_fraction}, {"Q00": o.Q00, "Q22": o.Q22})
 
 
+def write_bed_figures(run: Path) -> Path:
+    """``run/bed.json``: the :func:`bed_figures` of a finished run without a bulk region, from its
+    ``final.gsd``; kept beside ``analysis.json`` so that the table is rebuilt without the final
+    state, which the repository does not hold."""
+    a = json.loads((run / "analysis.json").read_text())
+    coordination, order = bed_figures(run / "final.gsd", a["bulk"]["z_surface"])
+    path = run / BED_FILE
+    path.write_text(json.dumps({"coordination": coordination, "order": order}, indent=1) + "\n")
+    return path
+
+
+def kept_bed_figures(run: Path) -> tuple[dict, dict]:
+    """The coordination and order figures of ``run/bed.json`` (:func:`write_bed_figures`)."""
+    path = run / BED_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{run}: a run without a bulk region needs its {BED_FILE}: "
+                                f"python benchmarks/sensitivity.py bed {run} (from its final.gsd)")
+    bed = json.loads(path.read_text())
+    return bed["coordination"], bed["order"]
+
+
 def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
     a = json.loads((run / "analysis.json").read_text())
     s = json.loads((run / "summary.json").read_text())
     task = json.loads((run / "task.json").read_text())
     phi, c, o = a["solid_fraction"], a["coordination"], a["order"]
-    if phi["bulk"] is None and (run / "final.gsd").is_file():
-        c, o = bed_figures(run / "final.gsd", a["bulk"]["z_surface"])
+    if phi["bulk"] is None:
+        c, o = kept_bed_figures(run)
     return {"mixture": mixture, "factor": factor, "setting": setting, "seed": a["seed"], "grains": a["n_particles"],
             "cell": task["config"].get("lateral_size", 8.0), "status": s["status"], "t": round(s["simulated_time"], 3),
             "phi": phi["bulk"], "phi_std": phi["std"], "phi_bed": _bed_phi(phi["profile_z"], phi["profile_phi"]),
@@ -676,6 +700,9 @@ def main(argv: list[str] | None = None) -> int:
                    "measure them: bed height, phi of the bottom layers, phi by the study's rule")
     sub.add_parser("drift", help="how far each capped study run was still settling over its last 200 and 100 "
                    "sqrt(d/g): centre-of-mass descent and the solid fraction it would add")
+    bed = sub.add_parser("bed", help="write bed.json (coordination and order over the whole bed) of finished runs "
+                         "without a bulk region, from their final.gsd")
+    bed.add_argument("runs", nargs="+", type=Path)
     by_layer = sub.add_parser("layers", help="phi and Q00 layer by layer of the final.gsd of run folders "
                               "(phi alone, from analysis.json, where final.gsd is not kept)")
     by_layer.add_argument("runs", nargs="+", type=Path)
@@ -695,6 +722,9 @@ def main(argv: list[str] | None = None) -> int:
         for run in args.runs:
             mixture = run.parent.name.partition("_")[2]
             print(json.dumps({"run": str(run), **rerun_check(run, STUDY_RUNS / mixture / run.name)}))
+    elif args.action == "bed":
+        for run in args.runs:
+            print(write_bed_figures(run))
     elif args.action == "k-deepest":
         for run in args.runs:
             print(json.dumps({"run": str(run), **k_manifold_deepest(run / "final.gsd" if run.is_dir() else run)}))

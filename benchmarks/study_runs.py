@@ -12,7 +12,8 @@ documentation page of the results from them:
 
 - ``save OUT``: the finished runs of campaign folder ``OUT`` into ``benchmarks/study/``, and the
   checkpoints of its unfinished runs (a kept checkpoint of a run that has since finished is removed);
-  ``--final`` keeps the finished runs' ``final.gsd`` too (a packing to analyse again), ``--kept``
+  ``--final`` copies the finished runs' ``final.gsd`` too (a packing to analyse again, which
+  ``.gitignore`` keeps out of commits: ``benchmarks/final_states.py``), ``--kept``
   another folder of kept runs (``benchmarks/validation/runs/...``);
 - ``restore OUT``: the kept runs into ``OUT``, where ``granpack campaign examples/study.toml
   --out OUT`` then skips the finished ones, resumes the checkpointed ones and runs the others

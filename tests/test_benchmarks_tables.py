@@ -362,3 +362,38 @@ def test_points_in_two_overlapping_spheres_measure_their_lens(phi_mc):
     twice = np.mean(phi_mc.coverage(packing, pts) == 2)
     p = lens / (lx * lx * 1.0)
     assert lens > 0.02 and abs(twice - p) < 4 * math.sqrt(p * (1 - p) / m)
+
+
+def _git(*args: str) -> str:
+    import subprocess
+
+    return subprocess.run(["git", "-C", str(BENCHMARKS.parent), *args], capture_output=True, text=True, check=True).stdout
+
+
+@pytest.fixture(scope="module")
+def final_states():
+    return _script("final_states")
+
+
+def test_a_final_state_is_checked_by_its_git_blob_id(final_states, tmp_path):
+    """The blob id that `final_states.py get` checks is git's own for the same bytes."""
+    path = tmp_path / "some.gsd"
+    path.write_bytes(b"\x00granpack\x01" * 100)
+    assert final_states._blob_id(path.read_bytes()) == _git("hash-object", str(path)).strip()
+    assert final_states._blob_id(b"other") != _git("hash-object", str(path)).strip()
+
+
+def test_the_tree_holds_no_final_state_and_the_manifest_names_kept_runs(final_states):
+    """A clone of the tip stays small: no kept run's final.gsd is tracked, the tracked files weigh
+    under 60 MB, and every final state the manifest lists belongs to a kept run of the tree."""
+    if not (BENCHMARKS.parent / ".git").exists():
+        pytest.skip("not a git clone")
+    tracked = _git("ls-files", "-z").split("\0")
+    assert not [p for p in tracked if p.startswith("benchmarks/validation/runs/") and p.endswith("/final.gsd")]
+    root = BENCHMARKS.parent
+    assert sum((root / p).stat().st_size for p in tracked if p and (root / p).is_file()) < 60e6
+    manifest = final_states.read_manifest()
+    assert len(manifest) >= 65
+    for run, row in manifest.items():
+        assert (root / run / "task.json").is_file() or (root / run / "config.toml").is_file(), run
+        assert len(row["blob"]) == 40 and int(row["bytes"]) > 0

@@ -9,8 +9,9 @@
 # none. WORKERS (default 2) sets the number of runs at once.
 # The kept runs of benchmarks/validation/runs/CAMPAIGN are restored into OUT/CAMPAIGN first (the
 # finished ones are skipped, the checkpointed ones resumed); the runs are saved back every 15
-# minutes and at the end (final.gsd too, for analyses made afterwards: contact types, layers), so
-# that a stop loses at most the last checkpoint interval.
+# minutes and at the end, so that a stop loses at most the last checkpoint interval. Their final.gsd
+# is saved too, for analyses made afterwards (contact types, layers), but .gitignore keeps it out of
+# commits: commit what is derived from it (benchmarks/final_states.py says where final states live).
 set -eu
 out=$1; campaign=$2; shift 2
 here=$(cd "$(dirname "$0")" && pwd)
