@@ -1,7 +1,7 @@
 """One Moreau–Jean step: predict, detect, assemble, solve (NLGS), correct positions, update.
 
 The scheme (docs: Method > NSCD, formulas in :mod:`granpack.nscd.rigid`): free velocities with
-gravity ``(0, 0, -1)`` and the explicit gyroscopic term; contacts detected on the predicted
+gravity (``StepParameters.gravity``, ``(0, 0, -1)``) and the explicit gyroscopic term; contacts detected on the predicted
 configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried by the contacts' shifts);
 the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS (:mod:`granpack.nscd.nlgs`)
 from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
@@ -119,6 +119,12 @@ class StepParameters:
             :func:`granpack.nscd.nlgs.solve`).
         nncg: the velocity solve and the position correction use the NNCG momentum
             (:mod:`granpack.nscd.nlgs`).
+        gravity: acceleration of gravity ``(g_x, g_y, g_z)``, g. A run always has ``(0, 0, -1)``
+            (no config key: the wall is the floor, and the equilibrium criteria, the energies and
+            the alert distance take gravity vertical). Tests tilt it, ``(sin θ, 0, -cos θ)``, to
+            put a grain on an incline of angle θ whose surface is the wall: the exact results of
+            Coulomb friction (stick below ``tan θ = μ``, slide at ``g (sin θ - μ cos θ)`` above,
+            roll at ``5/7 g sin θ``) need a slope, and the engine's only plane is the wall.
     """
 
     time_step: float = 5e-3
@@ -142,6 +148,7 @@ class StepParameters:
     damping: float = 0.0
     parallel_points: int = 2000
     nncg: bool = True
+    gravity: tuple[float, float, float] = (0.0, 0.0, -1.0)
 
     def __post_init__(self):
         if not self.time_step > 0:
@@ -162,6 +169,8 @@ class StepParameters:
                              "must be >= 0")
         if not self.correction_step > 0:
             raise ValueError(f"correction_step must be > 0, got {self.correction_step}")
+        if len(self.gravity) != 3 or not all(np.isfinite(self.gravity)):
+            raise ValueError(f"gravity must be three finite numbers, got {self.gravity}")
 
     @property
     def solver_options(self) -> NLGSOptions:
@@ -241,7 +250,8 @@ def predict(state: ParticleState, params: StepParameters) -> Prediction:
     v_free = np.empty((n + 1, 6))
     predict_kernel.sized(n)(
         state.position, state.quaternion, state.velocity, state.omega, np.ascontiguousarray(state.inertia),
-        float(params.time_step), float(params.theta), x_tt, q_tt, rot_tt, inv_iw, v_start, v_free, thread_count(),
+        float(params.time_step), float(params.theta), np.asarray(params.gravity, dtype=np.float64), x_tt, q_tt, rot_tt,
+        inv_iw, v_start, v_free, thread_count(),
     )
     x_tt = state.box.wrap(x_tt)
     inv_mass = np.zeros(n + 1)

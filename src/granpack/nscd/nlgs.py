@@ -439,11 +439,13 @@ def _sweep_part(g, body, data, offset, r, v, bounds, sums, before, direction, ta
     _sweep(body, data, offset, r, v, bounds[g], bounds[g + 1], forward, task[1] != 0.0, sums[g])
 
 
-@jit
-def _friction_point(k, body, data, fdata, offset, r, v, old):
+@jit(inline="always")
+def _friction_point(k, body, data, fdata, offset, r, v):
     """Numba: local Signorini–Coulomb update of point k (normal exact, tangential projected).
 
-    Updates ``r[k]`` (local ``(r_n, r_t, r_s)``) and both bodies; writes the previous impulse to ``old``.
+    Updates ``r[k]`` (local ``(r_n, r_t, r_s)``) and both bodies; returns the previous impulse
+    ``(r_n, r_t, r_s)``. Inlined into the sweeps (a compiled call per point costs a factor 2, as
+    for the frictionless sweep).
     """
     i = body[k, 0]
     j = body[k, 1]
@@ -460,21 +462,32 @@ def _friction_point(k, body, data, fdata, offset, r, v, old):
         ut += fdata[k, AIT + c] * wi - fdata[k, AJT + c] * wj
         us += fdata[k, AIS + c] * wi - fdata[k, AJS + c] * wj
     rn0, rt0, rs0 = r[k, 0], r[k, 1], r[k, 2]
-    old[0], old[1], old[2] = rn0, rt0, rs0
     rn = rn0 - (un + offset[k]) * data[k, INVW]
     if rn < 0.0:
         rn = 0.0
     rho = fdata[k, RHOT]
-    rt = rt0 - rho * ut
-    rs = rs0 - rho * us
-    limit = fdata[k, MU] * rn
+    rt, rs = _disc(rt0 - rho * ut, rs0 - rho * us, fdata[k, MU] * rn)
+    r[k, 0], r[k, 1], r[k, 2] = rn, rt, rs
+    _push3(k, body, data, fdata, rn - rn0, rt - rt0, rs - rs0, v)
+    return rn0, rt0, rs0
+
+
+@jit(inline="always")
+def _disc(rt, rs, limit):
+    """Numba: ``(r_t, r_s)`` projected on the friction disc of radius ``limit`` (``μ r_n``)."""
     norm2 = rt * rt + rs * rs
     if norm2 > limit * limit:
         scale = limit / np.sqrt(norm2)
         rt *= scale
         rs *= scale
-    r[k, 0], r[k, 1], r[k, 2] = rn, rt, rs
-    drn, drt, drs = rn - rn0, rt - rt0, rs - rs0
+    return rt, rs
+
+
+@jit(inline="always")
+def _push3(k, body, data, fdata, drn, drt, drs, v):
+    """Numba: add the velocities of a local impulse ``(drn, drt, drs)`` at point k to its bodies."""
+    i = body[k, 0]
+    j = body[k, 1]
     a = data[k, IMI]
     b = data[k, IMJ]
     for c in range(3):
@@ -485,7 +498,7 @@ def _friction_point(k, body, data, fdata, offset, r, v, old):
         v[j, 3 + c] -= drn * data[k, KJN + c] + drt * fdata[k, KJT + c] + drs * fdata[k, KJS + c]
 
 
-@jit
+@jit(inline="always")
 def _block_product(fdata, k, x0, x1, x2):
     """Numba: ``W_αα x`` with the symmetric diagonal block of point k (entries nn, tt, ss, nt, ns, ts)."""
     w = fdata[k]
@@ -495,9 +508,39 @@ def _block_product(fdata, k, x0, x1, x2):
     return y0, y1, y2
 
 
+@jit(inline="always")
+def _coulomb_sweep(body, data, fdata, offset, r, v, forward, check, sums):
+    """Numba: one Gauss–Seidel pass of :func:`_friction_point` over every point (forward or
+    backward), in place; when ``check``, the 'Quad' sums of its active points (``r_n`` or the
+    previous ``r_n`` nonzero, the norms in the diagonal blocks ``W_αα``) are added to ``sums``
+    ``(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)``."""
+    p = r.shape[0]
+    for step in range(p):
+        k = step if forward else p - 1 - step
+        o0, o1, o2 = _friction_point(k, body, data, fdata, offset, r, v)
+        if check:
+            n0, n1, n2 = r[k, 0], r[k, 1], r[k, 2]
+            if n0 != 0.0 or o0 != 0.0:
+                d0, d1, d2 = _block_product(fdata, k, n0 - o0, n1 - o1, n2 - o2)
+                wn0, wn1, wn2 = _block_product(fdata, k, n0, n1, n2)
+                wo0, wo1, wo2 = _block_product(fdata, k, o0, o1, o2)
+                b0, b1, b2 = 0.5 * (n0 + o0), 0.5 * (n1 + o1), 0.5 * (n2 + o2)
+                du2 = d0 * d0 + d1 * d1 + d2 * d2
+                sums[0] += 1
+                sums[1] += du2
+                sums[2] += 0.5 * (wn0 * wn0 + wn1 * wn1 + wn2 * wn2 + wo0 * wo0 + wo1 * wo1 + wo2 * wo2)
+                sums[3] += du2 * (b0 * b0 + b1 * b1 + b2 * b2)
+                sums[4] += 0.5 * (wn0 * n0 + wn1 * n1 + wn2 * n2 + wo0 * o0 + wo1 * o1 + wo2 * o2)
+                sums[5] += b0 * d0 + b1 * d1 + b2 * d2
+
+
 @jit
-def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_every):
+def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_every, nncg):
     """Numba: NLGS sweeps with Coulomb friction on local impulses ``r`` (P, 3), in place.
+
+    Sweeps alternate forward and backward; the 'Quad' norm is checked on the sweep that ends each
+    block of ``check_every``. With ``nncg``, each symmetric pair of sweeps gets the NNCG momentum
+    of :func:`_solve_frictionless`, projected on the Coulomb cone (:func:`_coulomb_momentum`).
 
     Returns:
         ``(sweeps, error, converged)``.
@@ -505,44 +548,60 @@ def _solve_coulomb(body, data, fdata, offset, r, v, tol, max_iterations, check_e
     p = r.shape[0]
     if p == 0:
         return 0, 0.0, True
-    old = np.empty(3)
-    it = 0
     error = np.inf
-    while it < max_iterations:
-        block = min(check_every, max_iterations - it)
-        for _ in range(block - 1):
-            if it % 2 == 0:
-                for k in range(p):
-                    _friction_point(k, body, data, fdata, offset, r, v, old)
-            else:
-                for k in range(p - 1, -1, -1):
-                    _friction_point(k, body, data, fdata, offset, r, v, old)
-            it += 1
-        n_act = 0
-        dvdv = wrwr = dvdvrr = wrr = dvor = 0.0
+    sums = np.zeros(6)
+    before = r.copy() if nncg else np.zeros((0, 3))
+    direction = np.zeros((p if nncg else 0, 3))
+    previous = np.inf
+    for it in range(max_iterations):
+        check = (it + 1) % check_every == 0 or it + 1 == max_iterations
+        sums[:] = 0.0
         forward = it % 2 == 0
-        for step in range(p):
-            k = step if forward else p - 1 - step
-            _friction_point(k, body, data, fdata, offset, r, v, old)
-            n0, n1, n2 = r[k, 0], r[k, 1], r[k, 2]
-            o0, o1, o2 = old[0], old[1], old[2]
-            if n0 != 0.0 or o0 != 0.0:
-                d0, d1, d2 = _block_product(fdata, k, n0 - o0, n1 - o1, n2 - o2)
-                wn0, wn1, wn2 = _block_product(fdata, k, n0, n1, n2)
-                wo0, wo1, wo2 = _block_product(fdata, k, o0, o1, o2)
-                b0, b1, b2 = 0.5 * (n0 + o0), 0.5 * (n1 + o1), 0.5 * (n2 + o2)
-                du2 = d0 * d0 + d1 * d1 + d2 * d2
-                n_act += 1
-                dvdv += du2
-                wrwr += 0.5 * (wn0 * wn0 + wn1 * wn1 + wn2 * wn2 + wo0 * wo0 + wo1 * wo1 + wo2 * wo2)
-                dvdvrr += du2 * (b0 * b0 + b1 * b1 + b2 * b2)
-                wrr += 0.5 * (wn0 * n0 + wn1 * n1 + wn2 * n2 + wo0 * o0 + wo1 * o1 + wo2 * o2)
-                dvor += b0 * d0 + b1 * d1 + b2 * d2
-        it += 1
-        error = _quad_error(n_act, dvdv, wrwr, dvdvrr, wrr, dvor)
-        if error < tol:
-            return it, error, True
-    return it, error, False
+        _coulomb_sweep(body, data, fdata, offset, r, v, forward, check, sums)
+        if check:
+            error = _quad_error(sums[0], sums[1], sums[2], sums[3], sums[4], sums[5])
+            if error < tol:
+                return it + 1, error, True
+        if nncg and not forward:
+            previous = _coulomb_momentum(body, data, fdata, r, v, before, direction, previous)
+    return max_iterations, error, False
+
+
+@jit
+def _coulomb_momentum(body, data, fdata, r, v, before, direction, previous):
+    """Numba: the NNCG step of :func:`_solve_coulomb` after a pair of sweeps that took ``before``
+    to ``r`` (in place on ``r``, ``v``, ``before``, ``direction``); returns ``Σ g·W_αα g`` of this
+    pair.
+
+    As :func:`_momentum` with the local impulses ``(r_n, r_t, r_s)``: ``g = r - before`` (the
+    pair's change), ``β = Σ g_k·W g_k / Σ g_{k-1}·W g_{k-1}`` (the diagonal blocks' metric),
+    ``β > 1`` restarts; ``r <- proj_C(r + β p)`` with ``proj_C`` the projection of the normal part
+    on ``r_n >= 0`` then of the tangential part on the disc ``μ r_n`` (the local solution set of
+    NLGS), the velocities following; ``p <- β p + g``.
+    """
+    p = r.shape[0]
+    norm = 0.0
+    for k in range(p):
+        g0, g1, g2 = r[k, 0] - before[k, 0], r[k, 1] - before[k, 1], r[k, 2] - before[k, 2]
+        w0, w1, w2 = _block_product(fdata, k, g0, g1, g2)
+        norm += g0 * w0 + g1 * w1 + g2 * w2
+    beta = _momentum_factor(norm, previous, direction)
+    for k in range(p):
+        g0, g1, g2 = r[k, 0] - before[k, 0], r[k, 1] - before[k, 1], r[k, 2] - before[k, 2]
+        if beta > 0.0:
+            rn = r[k, 0] + beta * direction[k, 0]
+            if rn < 0.0:
+                rn = 0.0
+            rt, rs = _disc(r[k, 1] + beta * direction[k, 1], r[k, 2] + beta * direction[k, 2], fdata[k, MU] * rn)
+            drn, drt, drs = rn - r[k, 0], rt - r[k, 1], rs - r[k, 2]
+            if drn != 0.0 or drt != 0.0 or drs != 0.0:
+                r[k, 0], r[k, 1], r[k, 2] = rn, rt, rs
+                _push3(k, body, data, fdata, drn, drt, drs, v)
+        direction[k, 0] = beta * direction[k, 0] + g0
+        direction[k, 1] = beta * direction[k, 1] + g1
+        direction[k, 2] = beta * direction[k, 2] + g2
+        before[k, 0], before[k, 1], before[k, 2] = r[k, 0], r[k, 1], r[k, 2]
+    return norm
 
 
 @jit(parallel=True)
@@ -614,7 +673,8 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
     if problem.frictional:
         r = np.ascontiguousarray(r0, dtype=np.float64).copy()
         v = problem.velocity(r)
-        it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v, tol, max_it, every)
+        it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v, tol,
+                                     max_it, every, False)
         impulse = r
     else:
         impulse = np.zeros((problem.n_points, 3))

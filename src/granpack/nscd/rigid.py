@@ -10,13 +10,14 @@ World inverse inertia, never inverting a full matrix (stored as its 6 independen
 
 .. math:: J_w^{-1} = R\\, \\mathrm{diag}(1/J_1, 1/J_2, 1/J_3)\\, R^T
 
-Free velocity over a step ``h`` (gravity ``(0, 0, -1)``, explicit gyroscopic term in the body
+Free velocity over a step ``h`` (gravity ``g``, ``(0, 0, -1)`` unless a test tilts it through
+:attr:`granpack.nscd.StepParameters.gravity`, explicit gyroscopic term in the body
 frame, then rescaled so that the rotational kinetic energy of a free body is unchanged — the
 exact torque-free flow conserves it, the explicit Euler step would raise it by O(h²)):
 
 .. math::
 
-    v^{free} = v^n + h\\,(0, 0, -1), \\qquad
+    v^{free} = v^n + h\\,\\mathbf g, \\qquad
     \\tilde\\omega = \\omega^n + h\\, J^{-1} (J\\omega^n \\times \\omega^n), \\qquad
     \\omega^{free} = \\tilde\\omega\\, \\sqrt{\\frac{\\omega^n \\cdot J \\omega^n}
                                                {\\tilde\\omega \\cdot J \\tilde\\omega}}
@@ -83,8 +84,8 @@ def world_inverse_inertia(quaternion: np.ndarray, inertia: np.ndarray) -> np.nda
 
 
 @jit(parallel=True)
-def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free,
-                   chunks):
+def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, gravity, x_tt, q_tt, rot_tt, inv_inertia_w,
+                   v_start, v_free, chunks):
     """Numba: predicted configuration, world inverse inertia, start and free velocities.
 
     Args:
@@ -92,6 +93,8 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
             ``(N, 3)`` (omega in the body frame).
         inertia: ``(N, 3)`` principal moments.
         h, theta: time step (sqrt(d/g)) and θ.
+        gravity: ``(3,)`` acceleration of gravity, g (``(0, 0, -1)`` in a run); a zero horizontal
+            component adds nothing, so the vertical default gives the bits of ``v_z - h``.
         x_tt, q_tt, rot_tt: outputs ``(N, 3)``, ``(N, 4)``, ``(N, 3, 3)``: predicted
             configuration (positions not wrapped) and its rotation matrices.
         inv_inertia_w: output ``(N + 1, 6)`` world inverse inertia at TT (row N: wall, zeros).
@@ -103,7 +106,7 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
     n = position.shape[0]
     for c in prange(chunks):
         _predict_bodies(n * c // chunks, n * (c + 1) // chunks, position, quaternion, velocity, omega, inertia, h, theta,
-                        x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free)
+                        gravity, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free)
     for k in range(6):
         inv_inertia_w[n, k] = 0.0
         v_start[n, k] = 0.0
@@ -111,8 +114,8 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, x_t
 
 
 @jit
-def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, theta, x_tt, q_tt, rot_tt, inv_inertia_w,
-                    v_start, v_free):
+def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, theta, gravity, x_tt, q_tt, rot_tt,
+                    inv_inertia_w, v_start, v_free):
     """Numba: :func:`predict_kernel` for the bodies ``p0 <= p < p1``."""
     a = (1.0 - theta) * h
     phi = np.empty(3)
@@ -148,7 +151,10 @@ def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, t
             v_free[p, k] = velocity[p, k]
             v_start[p, 3 + k] = rot[k, 0] * w0 + rot[k, 1] * w1 + rot[k, 2] * w2
             v_free[p, 3 + k] = rot[k, 0] * f0 + rot[k, 1] * f1 + rot[k, 2] * f2
-        v_free[p, 2] -= h
+        for k in range(2):
+            if gravity[k] != 0.0:  # a vertical gravity leaves v_x, v_y untouched (signed zeros included)
+                v_free[p, k] += h * gravity[k]
+        v_free[p, 2] += h * gravity[2]  # h * -1.0 is -h exactly: the bits of v_z - h
 
 
 @jit(parallel=True)
