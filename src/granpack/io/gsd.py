@@ -9,11 +9,16 @@ One frame per file. Layout:
   ``-Lz/2`` in the viewer. These schema fields are float32, so the exact double-precision arrays
   are stored alongside, uncentred, in ``log/granpack/position``, ``log/granpack/orientation`` and
   ``log/granpack/velocity``; :func:`read_packing` reads those, hence the round trip is exact.
-- ``particles/orientation`` (w, x, y, z), ``particles/typeid`` = shape kind, ``particles/types``
-  (kind names), ``particles/type_shapes`` (``Shape.gsd_shape()``), ``particles/diameter``
-  (circumscribed), ``particles/mass``, ``particles/moment_inertia``, ``particles/velocity``.
-- Per-particle logs (OVITO shows them as properties): ``log/particles/population`` (int64) and
-  ``log/particles/omega`` (float64, body frame).
+- ``particles/orientation`` (w, x, y, z), ``particles/types``, ``particles/type_shapes``
+  (``Shape.gsd_shape()``) and ``particles/typeid``: one type per distinct shape among the grains
+  (kinds of equal ``gsd_shape()`` share a type, kinds that no grain has get none), so a population
+  of mesh files or rocks has one type per file or rock; grains of a graded population differ in
+  size, hence in shape (GSD scales no polyhedron per particle), and take one type each.
+  ``particles/diameter`` (circumscribed), ``particles/mass``, ``particles/moment_inertia``,
+  ``particles/velocity``.
+- Per-particle logs (OVITO shows them as properties): ``log/particles/kind`` (int64, the grain's
+  kind in the shape table), ``log/particles/population`` (int64) and ``log/particles/omega``
+  (float64, body frame).
 - Contacts (:class:`~granpack.contact.ContactSet` arrays, float64/int64):
   ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``.
 - Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}`` and
@@ -21,7 +26,9 @@ One frame per file. Layout:
   :class:`~granpack.shapes.ShapeTable` exactly), ``log/granpack/population_names``,
   ``log/granpack/metadata``.
 
-Files are written to a temporary name in the same folder and renamed (atomic).
+Files are written to a temporary name in the same folder and renamed (atomic). Format 1 (before
+types were shared between kinds) had one type per kind and no ``log/particles/kind``: its
+``typeid`` is the kind, and :func:`read_packing` reads it so.
 """
 
 from __future__ import annotations
@@ -46,7 +53,9 @@ from granpack.state import ParticleState
 __all__ = ["write_packing", "append_frame", "truncate_frames", "read_packing", "shape_spec", "shape_from_spec"]
 
 #: version of the layout above, stored in ``log/granpack/format``
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: the formats :func:`read_packing` reads (1: ``particles/typeid`` is the kind)
+READ_FORMATS = (1, 2)
 
 _CONTACT_FIELDS = ("body_i", "body_j", "shift", "normal", "ctype", "point_start", "point", "gap", "impulse")
 
@@ -98,11 +107,34 @@ def shape_from_spec(spec: dict, earlier: list[Shape] | None = None) -> Shape:
     raise ValueError(f"unknown shape type {kind!r}")
 
 
-def _type_names(shapes: tuple[Shape, ...]) -> list[str]:
-    """Unique GSD type names: the shape name (``sphere`` for spheres), suffixed by the kind if repeated."""
-    base = [s.name if isinstance(s, ConvexPolyhedron) else "sphere" for s in shapes]
+def _types(state: ParticleState) -> tuple[list[str], list[dict], np.ndarray]:
+    """The GSD types of ``state``: one per distinct shape among its grains' kinds.
+
+    Kinds whose ``gsd_shape()`` are equal (the same JSON: every number the same float) share a
+    type, which takes the first such kind's shape name (``sphere`` for spheres), suffixed by the
+    type's index where that name is repeated; kinds that no grain has get no type (all kinds get
+    one when there is no grain).
+
+    Returns:
+        ``(names, type_shapes, type_of)``: the type names, their ``type_shapes`` entries, and the
+        ``(n_kinds,)`` int64 type of each kind (-1 for a kind without a type).
+    """
+    shapes = state.shapes.shapes
+    used = np.unique(state.kind) if state.n else np.arange(len(shapes))
+    type_of = np.full(len(shapes), -1, dtype=np.int64)
+    index: dict[str, int] = {}
+    entries: list[dict] = []
+    base: list[str] = []
+    for k in used.tolist():
+        entry = shapes[k].gsd_shape()
+        t = index.setdefault(json.dumps(entry, sort_keys=True), len(entries))
+        if t == len(entries):
+            entries.append(entry)
+            base.append(shapes[k].name if isinstance(shapes[k], ConvexPolyhedron) else "sphere")
+        type_of[k] = t
     repeated = Counter(base)
-    return [b if repeated[b] == 1 else f"{b}-{k}" for k, b in enumerate(base)]
+    names = [b if repeated[b] == 1 else f"{b}-{t}" for t, b in enumerate(base)]
+    return names, entries, type_of
 
 
 def _text(obj) -> np.ndarray:
@@ -124,9 +156,10 @@ def _frame(packing: Packing) -> gsd.hoomd.Frame:
     f.configuration.step = int(packing.metadata.get("step", 0))
     f.configuration.box = [box.lx, box.ly, lz, 0.0, 0.0, 0.0]
     f.particles.N = state.n
-    f.particles.types = _type_names(shapes)
-    f.particles.type_shapes = [s.gsd_shape() for s in shapes]
-    f.particles.typeid = state.kind.astype(np.uint32)
+    names, entries, type_of = _types(state)
+    f.particles.types = names
+    f.particles.type_shapes = entries
+    f.particles.typeid = type_of[state.kind].astype(np.uint32)
     f.particles.position = (state.position - origin).astype(np.float32)
     f.particles.orientation = state.quaternion.astype(np.float32)
     f.particles.velocity = state.velocity.astype(np.float32)
@@ -135,6 +168,7 @@ def _frame(packing: Packing) -> gsd.hoomd.Frame:
     f.particles.moment_inertia = state.inertia.astype(np.float32)
 
     log = f.log
+    log["particles/kind"] = state.kind.astype(np.int64)
     log["particles/population"] = state.population.astype(np.int64)
     log["particles/omega"] = state.omega.astype(np.float64)
     for name in _CONTACT_FIELDS:
@@ -232,8 +266,9 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
     if "granpack/format" not in log:
         raise KeyError("log/granpack/format")
     fmt = int(np.asarray(log["granpack/format"])[0])
-    if fmt != FORMAT_VERSION:
-        raise ValueError(f"unsupported granpack GSD format {fmt} (this version reads {FORMAT_VERSION})")
+    if fmt not in READ_FORMATS:
+        raise ValueError(f"unsupported granpack GSD format {fmt} (this version reads "
+                         f"{', '.join(map(str, READ_FORMATS))})")
     n = int(frame.particles.N)
     built: list[Shape] = []
     for spec in _untext(log["granpack/shapes"]):
@@ -243,7 +278,7 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
     state = ParticleState(
         box=Box(lx, ly),
         shapes=shapes,
-        kind=np.asarray(frame.particles.typeid, dtype=np.int64).reshape(n),
+        kind=np.asarray(frame.particles.typeid if fmt == 1 else log["particles/kind"], dtype=np.int64).reshape(n),
         population=np.asarray(log["particles/population"], dtype=np.int64).reshape(n),
         position=np.asarray(log["granpack/position"], dtype=np.float64).reshape(n, 3),
         quaternion=np.asarray(log["granpack/orientation"], dtype=np.float64).reshape(n, 4),
@@ -252,7 +287,7 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
         time=float(np.asarray(log["granpack/time"])[0]),
     )
     if n and (state.kind.min() < 0 or state.kind.max() >= shapes.n_kinds):
-        raise ValueError("particle typeid outside the stored shapes")
+        raise ValueError("particle kind outside the stored shapes")
     arrays = {name: np.asarray(log[f"contacts/{name}"]) for name in _CONTACT_FIELDS}
     m, p = len(arrays["body_i"]), len(arrays["gap"])
     contacts = ContactSet(

@@ -120,8 +120,11 @@ def grain_surfaces(state: ParticleState, sphere_segments: int = 16) -> SurfaceMe
     owner: dict[int, list[np.ndarray]] = {}
     normal: dict[int, list[np.ndarray]] = {}
     offset = 0
+    # the grains of each kind, in index order (one sort: a graded population has a kind per grain)
+    order = np.argsort(state.kind, kind="stable")
+    bounds = np.searchsorted(state.kind[order], np.arange(state.shapes.n_kinds + 1))
     for kind, shape in enumerate(state.shapes.shapes):
-        members = np.flatnonzero(state.kind == kind)
+        members = order[bounds[kind]:bounds[kind + 1]]
         if not len(members):
             continue
         vertices, kind_faces, kind_normals = shape_surface(shape, sphere_segments)
