@@ -7,8 +7,6 @@ weight, as defined in :mod:`granpack.equilibrium` (docs/method/equilibrium.md), 
 
 from __future__ import annotations
 
-import numpy as np
-
 from granpack.analysis._base import Compute, result
 from granpack.equilibrium import EquilibriumCriteria, EquilibriumFields, EquilibriumReport, equilibrium_fields, report_from_fields
 from granpack.packing import Packing
@@ -33,7 +31,6 @@ class Equilibrium(Compute):
             packing.state, packing.contacts, packing.time_step, gravity=packing.gravity, criteria=self.criteria
         )
         self._report = report_from_fields(self._fields, self.criteria)
-        self._z = packing.state.position[:, 2].copy()
         if packing.contacts.n_manifolds == 0:
             self._warn("no contact: the packing cannot be in equilibrium (normalised figures are inf)")
         return self._done()
@@ -58,16 +55,6 @@ class Equilibrium(Compute):
         """True when all criteria hold."""
         return self._report.passed
 
-    def plot(self, ax=None):
-        """Normalised net force and torque of every grain against height (log scale); returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
-        tiny = np.finfo(float).tiny
-        ax.semilogx(np.maximum(self._fields.force_ratio, tiny), self._z, ".", ms=2, label="|F| / (d² P)")
-        ax.semilogx(np.maximum(self._fields.torque_ratio, tiny), self._z, ".", ms=2, label="|T| / (d³ P)")
-        ax.axvline(self.criteria.force, color="0.5", lw=0.8)
-        ax.set_xlabel("normalised imbalance")
-        ax.set_ylabel("z / d")
-        ax.legend(loc="best")
-        return ax
+    def to_dict(self) -> dict:
+        """The ``equilibrium`` part of ``analysis.json``: :attr:`figures`."""
+        return self.figures

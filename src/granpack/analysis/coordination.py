@@ -333,15 +333,22 @@ class Coordination(Compute):
         """Mean number of constraints ``Ns + 2 Nd + 3 Nt`` per backbone grain."""
         return self._backbone["Nc"]
 
-    def plot(self, ax=None):
-        """Histogram of the contacts per backbone grain; returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
-        keep = self._analysed & ~self._rattlers
-        n = self._counts[keep].sum(axis=1).astype(int)
-        if len(n):
-            ax.hist(n, bins=np.arange(n.max() + 2) - 0.5)
-        ax.set_xlabel("force-bearing contacts per grain")
-        ax.set_ylabel("grains")
-        return ax
+    def to_dict(self) -> dict:
+        """The ``coordination`` part of ``analysis.json``: the backbone figures (:attr:`figures`),
+        ``rattler_fraction``, ``with_rattlers``, ``n_analysed``, the settings the types were
+        drawn with (``force_tol``, ``type_rule``, ``point_tol``, ``gap_tol``, ``rank_tol``), and the
+        figures of the cross-check classifications ``gap_rule`` and ``geometric`` (:attr:`by_rule`)."""
+        by_rule = self.by_rule
+        return {
+            **self.figures,
+            "rattler_fraction": self.rattler_fraction,
+            "with_rattlers": self.with_rattlers,
+            "n_analysed": self.n_analysed,
+            "force_tol": self.force_tol,
+            "type_rule": "force-bearing points",
+            "point_tol": self.point_tol,
+            "gap_tol": self.gap_tol,
+            "rank_tol": self.rank_tol,
+            "gap_rule": by_rule["gap_rule"],
+            "geometric": by_rule["geometric"],
+        }

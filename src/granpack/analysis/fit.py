@@ -153,11 +153,8 @@ class ExponentialFit(Compute):
             raise NotComputedError("ExponentialFit.predict is available after compute()")
         return exponential_model(q, *self._params)
 
-    def plot(self, ax=None):
-        """Data points and the fitted curve; returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
+    def plot(self, ax):
+        """Data points and the fitted curve on ``ax`` (pyplot-free: no figure is created); returns ``ax``."""
         ax.plot(self._q, self._n, "o", label="packings")
         if np.all(np.isfinite(self._params)):
             qq = np.linspace(0.0, max(float(self._q.max()), 1e-3) * 1.05, 200)

@@ -93,17 +93,6 @@ class GrainShapes(Compute):
                       if len(v) else dict.fromkeys(("mean", "std", "min", "max"), math.nan))
         return out
 
-    def plot(self, ax=None):
-        """Elongation against flatness, one point per shape class sized by its grains; returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
-        for p in self._classes:
-            e = [c["elongation"] for c in p["classes"]]
-            f = [c["flatness"] for c in p["classes"]]
-            n = [int(c["grains"].sum()) for c in p["classes"]]
-            ax.scatter(e, f, s=[10 + 2 * k for k in n], label=p["population"], alpha=0.7)
-        ax.set_xlabel("elongation L/G")
-        ax.set_ylabel("flatness G/E")
-        ax.legend(loc="best")
-        return ax
+    def to_dict(self) -> dict:
+        """The ``grain_shapes`` part of ``analysis.json``: :attr:`per_grain`."""
+        return self.per_grain

@@ -21,11 +21,11 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, result
+from granpack.analysis._base import Compute, any_finite, as_array, result
 from granpack.analysis.solid_fraction import analysed_region, slice_volumes
 from granpack.packing import Packing
 
-__all__ = ["Homogeneity"]
+__all__ = ["Homogeneity", "plot_proportions", "proportions_of"]
 
 
 class Homogeneity(Compute):
@@ -132,15 +132,56 @@ class Homogeneity(Compute):
         sel = self._bulk_layers
         return {name: float(self._p[a, sel].std(ddof=1)) if sel.sum() > 1 else math.nan for a, name in enumerate(self._names)}
 
-    def plot(self, ax=None):
-        """Volume share of each population against height, nominal shares dashed; returns the axes."""
-        import matplotlib.pyplot as plt
+    def to_dict(self) -> dict:
+        """The ``homogeneity`` part of ``analysis.json``: ``z``, ``proportions``, ``nominal``,
+        ``bulk_mean``, ``bulk_std`` (each by population name) and ``segregated_layers``: per
+        population, the bulk layers flagged as segregated."""
+        return {
+            "z": self.z,
+            "proportions": self.proportions,
+            "nominal": self.nominal,
+            "bulk_mean": self.bulk_mean,
+            "bulk_std": self.bulk_std,
+            "segregated_layers": {name: int((flags & self._bulk_layers).sum()) for name, flags in self.segregated.items()},
+        }
 
-        ax = ax or plt.gca()
-        for a, name in enumerate(self._names):
-            line = ax.plot(self._p[a], self._z, label=name)[0]
-            ax.axvline(self._nominal[a], ls="--", color=line.get_color(), lw=0.8)
-        ax.set_xlabel("volume share")
-        ax.set_ylabel("z / d")
-        ax.legend(loc="best")
+    def plot(self, ax):
+        """The homogeneity figure (:func:`plot_proportions`) on ``ax``; returns ``ax``."""
+        plot_proportions(ax, self.to_dict())
         return ax
+
+
+def proportions_of(output: dict | None) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, float]]:
+    """Layer heights, the volume proportion profile of each population (those of the heights'
+    length with a finite value) and the nominal proportions, of a ``homogeneity`` part
+    (:meth:`Homogeneity.to_dict` or read from ``analysis.json``); empty where absent."""
+    data = output or {}
+    z = as_array(data.get("z"))
+    proportions, nominal = data.get("proportions"), data.get("nominal")
+    if not isinstance(proportions, dict):
+        return z, {}, {}
+    profiles = {str(name): as_array(p) for name, p in proportions.items()}
+    nominal = {str(k): float(v) for k, v in nominal.items() if isinstance(v, (int, float))} if isinstance(nominal, dict) else {}
+    return z, {name: p for name, p in profiles.items() if len(p) == len(z) and any_finite(p)}, nominal
+
+
+def plot_proportions(ax, output: dict | None) -> int:
+    """Draw each population's volume proportion against the height on ``ax``, its nominal share
+    dotted in the same colour.
+
+    Pyplot-free: it draws on the given axes and creates no figure, so the same function serves a
+    computed :class:`Homogeneity` and a run's ``analysis.json`` (``granpack figures``).
+
+    Returns:
+        The number of profiles drawn (:func:`proportions_of`).
+    """
+    z, profiles, nominal = proportions_of(output)
+    for k, (name, p) in enumerate(profiles.items()):
+        ax.plot(p, z, marker=".", color=f"C{k}", label=name)
+        if name in nominal:
+            ax.axvline(nominal[name], color=f"C{k}", linewidth=0.8, linestyle=":")
+    ax.set_xlabel("proportion of the solid volume")
+    ax.set_ylabel("height z (d)")
+    ax.set_xlim(-0.02, 1.02)
+    ax.legend(title="population")
+    return len(profiles)

@@ -58,7 +58,6 @@ class Interpenetration(Compute):
         g = packing.gravity
         overlap = np.maximum(-c.gap, 0.0)
         has = overlap > 0
-        self._overlaps = overlap[has]
         self._max = float(overlap.max()) if c.n_points else 0.0
         self._mean = float(overlap[has].mean()) if has.any() else 0.0
         self._fraction = float(has.mean()) if c.n_points else math.nan
@@ -120,16 +119,18 @@ class Interpenetration(Compute):
         """All four estimates: ``work_column``, ``love_column``, ``work_bulk``, ``love_bulk``."""
         return dict(self._k)
 
-    def plot(self, ax=None):
-        """Histogram of the overlap depths (log scale); returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
-        depths = self._overlaps
-        if len(depths):
-            lo, hi = np.log10(depths.min()), np.log10(depths.max())
-            ax.hist(depths, bins=np.logspace(lo, hi + 1e-9, 40))
-            ax.set_xscale("log")
-        ax.set_xlabel("overlap depth / d")
-        ax.set_ylabel("contact points")
-        return ax
+    def to_dict(self) -> dict:
+        """The ``interpenetration`` part of ``analysis.json``: ``max``, ``mean`` (d),
+        ``expansion_k``, the four estimates ``k``, ``fraction_overlapping``, ``fraction_deep``, and
+        ``phi_relative_overestimate`` (= ``expansion_k``: the share by which the overlaps raise the
+        solid fraction)."""
+        k = self.expansion_k
+        return {
+            "max": self.max,
+            "mean": self.mean,
+            "expansion_k": k,
+            "k": self.k,
+            "fraction_overlapping": self.fraction,
+            "fraction_deep": self.fraction_deep,
+            "phi_relative_overestimate": k,
+        }

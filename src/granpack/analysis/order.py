@@ -41,6 +41,8 @@ from granpack.rotations import quat_to_matrix, random_quaternions
 
 __all__ = ["Order", "order_parameters", "isotropic_baseline", "AXIS_NAMES"]
 
+#: how Q22 is normalised, in words (``analysis.json`` carries it beside the figure)
+Q22_CONVENTION = "tensor form with prefactor 1/3, max over the in-plane frame (perfect order = 1)"
 #: names of the body axes, in order: u (length L, body x), v (width G, body y), w (thickness E, body z)
 AXIS_NAMES = ("u", "v", "w")
 
@@ -171,14 +173,16 @@ class Order(Compute):
         q00, s00, q22, s22 = self._baseline
         return {"Q00": q00, "Q00_std": s00, "Q22": q22, "Q22_std": s22}
 
-    def plot(self, ax=None):
-        """Bar chart of Q00 and Q22 against the isotropic baseline; returns the axes."""
-        import matplotlib.pyplot as plt
-
-        ax = ax or plt.gca()
-        base = self.baseline
-        ax.bar([0, 1], [self.Q00, self.Q22], color="C0", label="packing")
-        ax.errorbar([0, 1], [base["Q00"], base["Q22"]], yerr=[base["Q00_std"], base["Q22_std"]], fmt="o", color="C3", label="isotropic")
-        ax.set_xticks([0, 1], [r"$Q^2_{00}$", r"$Q^2_{22}$"])
-        ax.legend(loc="best")
-        return ax
+    def to_dict(self) -> dict:
+        """The ``order`` part of ``analysis.json``: ``Q00``, ``Q22``, ``director``,
+        ``director_axis``, ``n_analysed``, ``isotropic_baseline`` (:attr:`baseline`) and the
+        convention of Q22 in words."""
+        return {
+            "Q00": self.Q00,
+            "Q22": self.Q22,
+            "director": self.director,
+            "director_axis": self.director_axis,
+            "n_analysed": self.n_analysed,
+            "isotropic_baseline": self.baseline,
+            "Q22_convention": Q22_CONVENTION,
+        }

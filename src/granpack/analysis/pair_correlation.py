@@ -30,12 +30,12 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, result
+from granpack.analysis._base import Compute, any_finite, as_array, result
 from granpack.analysis._kernels import pair_histogram_kernel
 from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.packing import Packing
 
-__all__ = ["PairCorrelation", "ball_in_slab"]
+__all__ = ["PairCorrelation", "ball_in_slab", "g_of", "plot_g"]
 
 
 def ball_in_slab(r: np.ndarray, below: np.ndarray, above: np.ndarray) -> np.ndarray:
@@ -102,6 +102,7 @@ class PairCorrelation(Compute):
         self._z_cum = np.full(self.bins, math.nan)
         self._partial = np.full((npop, npop, self.bins), math.nan)
         self._n_ref = 0
+        self._names = list(packing.population_names)
         self._r_min = float(state.radius.min()) if state.n else math.nan
 
         z = state.position[:, 2]
@@ -186,13 +187,60 @@ class PairCorrelation(Compute):
         """Number of reference grains."""
         return self._n_ref
 
-    def plot(self, ax=None):
-        """g(r) against r/d; returns the axes."""
-        import matplotlib.pyplot as plt
+    def to_dict(self) -> dict:
+        """The ``pair_correlation`` part of ``analysis.json``: ``r``, ``g``, ``r_over_rmin``,
+        ``coordination`` (running Z), ``n_references``, and with ``partials`` the partial g_ab(r)
+        under ``"a|b"`` (reference population a, neighbour population b, by name)."""
+        out = {
+            "r": self.r,
+            "g": self.g,
+            "r_over_rmin": self.r_over_rmin,
+            "coordination": self.coordination,
+            "n_references": self.n_references,
+        }
+        if self.partials:
+            partial = self.partial
+            out["partial"] = {f"{a}|{b}": partial[i, j] for i, a in enumerate(self._names) for j, b in enumerate(self._names)}
+        return out
 
-        ax = ax or plt.gca()
-        ax.plot(self.r, self.g, lw=1)
-        ax.axhline(1.0, color="0.6", lw=0.5)
-        ax.set_xlabel("r / d")
-        ax.set_ylabel("g(r)")
+    def plot(self, ax):
+        """The g(r) figure of a run (:func:`plot_g`, with its legend) on ``ax``; returns ``ax``."""
+        if plot_g(ax, self.to_dict()):
+            ax.legend()
         return ax
+
+
+def g_of(output: dict | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(r, g)`` of a ``pair_correlation`` part (:meth:`PairCorrelation.to_dict` or read from
+    ``analysis.json``); empty arrays when absent, of unequal lengths or all nan."""
+    output = output or {}
+    r, g = as_array(output.get("r")), as_array(output.get("g"))
+    return (r, g) if len(r) == len(g) and any_finite(g) else (np.zeros(0), np.zeros(0))
+
+
+def plot_g(ax, output: dict | None, *, reference: bool = True, **style) -> bool:
+    """Draw one g(r) curve on ``ax`` and name the axes; with ``reference``, then the line g = 1.
+
+    Pyplot-free: it draws on the given axes and creates no figure, so the same function serves a
+    computed :class:`PairCorrelation`, a run's ``analysis.json`` (``granpack figures``) and a
+    campaign's mean over replicas (an ``{"r", "g"}`` dict, several curves on one axes: the
+    reference line with the last). The legend is the caller's, once its curves are drawn.
+
+    Args:
+        ax: matplotlib axes.
+        output: a ``pair_correlation`` part (:meth:`PairCorrelation.to_dict` or read from the file).
+        reference: draw the line g = 1 after the curve.
+        style: matplotlib line keywords; default colour ``C0`` and label ``all grains``.
+
+    Returns:
+        Whether there was a curve to draw (:func:`g_of`; nothing is drawn otherwise).
+    """
+    r, g = g_of(output)
+    if not len(g):
+        return False
+    ax.plot(r, g, **{"color": "C0", "label": "all grains", **style})
+    ax.set_xlabel("distance between centres r (d)")
+    ax.set_ylabel("pair correlation g(r)")
+    if reference:
+        ax.axhline(1.0, color="0.5", linewidth=0.8)
+    return True

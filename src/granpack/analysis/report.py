@@ -84,12 +84,16 @@ class AnalysisOptions:
     criteria: EquilibriumCriteria | None = None
 
 
-def _order_figures(order: Order, baseline: bool) -> dict:
-    """``{Q00, Q22, n_analysed}`` of a computed :class:`Order`, with its isotropic baseline if asked."""
-    out = {"Q00": order.Q00, "Q22": order.Q22, "n_analysed": order.n_analysed}
-    if baseline:
-        out["isotropic_baseline"] = order.baseline
-    return out
+#: the order figures of a population, and of a shape class (without the isotropic baseline)
+_POPULATION_ORDER = ("Q00", "Q22", "n_analysed", "isotropic_baseline")
+_CLASS_ORDER = ("Q00", "Q22", "n_analysed")
+
+
+def _order_of(packing: Packing, keys: tuple[str, ...], **selection) -> dict:
+    """The ``keys`` of :meth:`Order.to_dict` over the bulk grains of a population or shape class
+    (``selection``: the :class:`Order` arguments that select them)."""
+    figures = Order(**selection).compute(packing).to_dict()
+    return {k: figures[k] for k in keys}
 
 
 def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, z_range) -> list[dict]:
@@ -114,13 +118,13 @@ def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, 
         if len(kinds) > 1 and len(sizes):
             row["sizes"] = {"min": float(sizes.min()), "max": float(sizes.max()), "mean": float(sizes.mean())}
         row["coordination"] = co.figures_of(members)
-        row["order"] = _order_figures(Order(z_range, population=a).compute(packing), baseline=True)
+        row["order"] = _order_of(packing, _POPULATION_ORDER, z_range=z_range, population=a)
         row["shape_descriptors"] = grain_shapes.summary(members)
         row["shape_classes"] = [
             {"shape": c["shape"], "n": int(c["grains"].sum()),
              **{k: c[k] for k in ("elongation", "flatness", "sphericity", "convexity")},
              "coordination": co.figures_of(c["grains"]),
-             "order": _order_figures(Order(z_range, grains=c["grains"]).compute(packing), baseline=False)}
+             "order": _order_of(packing, _CLASS_ORDER, z_range=z_range, grains=c["grains"])}
             for c in grain_shapes.classes[a]["classes"]]
         out.append(row)
     return out
@@ -130,19 +134,12 @@ def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, 
 _BULK_KEYS = ("coordination", "order", "pair_correlation", "homogeneity")
 
 
-def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) -> dict:
-    """Every analysis of ``packing`` as a dict (profiles as NumPy arrays, nan for undefined figures).
-
-    :func:`granpack.io.json.write_json` turns it into strict JSON (arrays to lists, nan to null).
-
-    A packing too thin for a bulk region, without contacts, or with a single grain yields
-    warnings (also listed under ``warnings``) and nan bulk figures, never an exception.
-    """
-    from granpack import __version__
-
-    opt = options or AnalysisOptions()
+def _compute(packing: Packing, opt: AnalysisOptions) -> tuple[SolidFraction, tuple[float, float], dict]:
+    """The solid fraction, its bulk region ``(z_bottom, z_top)`` (empty without one) that every
+    bulk figure reads, and the quantities computed over that region, by their key of
+    ``analysis.json``; their warnings silenced (:func:`analyze_packing` says them once, with their
+    key)."""
     box = packing.box
-    messages: list[str] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sf = SolidFraction(opt.slice_thickness, opt.n_bottom, opt.n_top).compute(packing)
@@ -158,6 +155,25 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             "interpenetration": Interpenetration(opt.n_bottom).compute(packing),
             "homogeneity": Homogeneity(opt.layer_thickness, z_range).compute(packing),
         }
+    return sf, z_range, computed
+
+
+def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) -> dict:
+    """Every analysis of ``packing`` as a dict (profiles as NumPy arrays, nan for undefined figures).
+
+    Each quantity gives its own part (its ``to_dict()``); this function computes them over one bulk
+    region, gathers their warnings, and adds the parts no single quantity owns: the packing's
+    identity (``version``, ``n_particles``, ``seed``, ``status``) and the ``populations`` rows.
+    :func:`granpack.io.json.write_json` turns it into strict JSON (arrays to lists, nan to null).
+
+    A packing too thin for a bulk region, without contacts, or with a single grain yields
+    warnings (also listed under ``warnings``) and nan bulk figures, never an exception.
+    """
+    from granpack import __version__
+
+    opt = options or AnalysisOptions()
+    sf, z_range, computed = _compute(packing, opt)
+    messages: list[str] = []
     if sf.has_bulk:
         messages += [f"solid_fraction: {m}" for m in sf.warnings]
     else:  # one message says why every bulk figure is nan
@@ -169,7 +185,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
     for m in messages:
         warnings.warn(m, AnalysisWarning, stacklevel=2)
 
-    co, order, rdf = computed["coordination"], computed["order"], computed["pair_correlation"]
+    co = computed["coordination"]
     grain_shapes = GrainShapes().compute(packing)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a population's or class's nan figures: the whole packing's warnings say why
@@ -181,96 +197,22 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
             warnings.simplefilter("ignore")
             classes = SizeClasses(opt.sieves, opt.layer_thickness, z_range, coordination=co).compute(packing)
         messages += [f"size_classes: {m}" for m in classes.warnings]
-    eq, ip, hom = computed["equilibrium"], computed["interpenetration"], computed["homogeneity"]
-    k = ip.expansion_k
-    rdf_out = {
-        "r": rdf.r,
-        "g": rdf.g,
-        "r_over_rmin": rdf.r_over_rmin,
-        "coordination": rdf.coordination,
-        "n_references": rdf.n_references,
-    }
-    if opt.rdf_partials:
-        rdf_out["partial"] = {
-            f"{a}|{b}": rdf.partial[i, j] for i, a in enumerate(packing.population_names) for j, b in enumerate(packing.population_names)
-        }
     return {
         "version": __version__,
         "n_particles": packing.n_particles,
         "populations": populations,
         "seed": packing.seed,
         "status": packing.metadata.get("status"),
-        "bulk": {
-            "z_bottom": sf.z_bottom,
-            "z_top": sf.z_top,
-            "z_surface": sf.z_surface,
-            "valid": sf.has_bulk,
-            "n_bottom": opt.n_bottom,
-            "n_top": opt.n_top,
-        },
-        "solid_fraction": {
-            "bulk": sf.bulk,
-            "std": sf.std,
-            "profile_z": sf.profile_z,
-            "profile_phi": sf.profile_phi,
-            "layers": sf.layers,
-            "plateau": sf.plateau,
-            "corrected_for_overlap": sf.bulk / (1.0 + k) if math.isfinite(k) else math.nan,
-        },
-        "coordination": {
-            **co.figures,
-            "rattler_fraction": co.rattler_fraction,
-            "with_rattlers": co.with_rattlers,
-            "n_analysed": co.n_analysed,
-            "force_tol": opt.force_tol,
-            "type_rule": "force-bearing points",
-            "point_tol": opt.point_tol,
-            "gap_tol": opt.gap_tol,
-            "rank_tol": opt.rank_tol,
-            "gap_rule": co.by_rule["gap_rule"],
-            "geometric": co.by_rule["geometric"],
-        },
-        "order": {
-            "Q00": order.Q00,
-            "Q22": order.Q22,
-            "director": order.director,
-            "director_axis": order.director_axis,
-            "n_analysed": order.n_analysed,
-            "isotropic_baseline": order.baseline,
-            "Q22_convention": "tensor form with prefactor 1/3, max over the in-plane frame (perfect order = 1)",
-        },
-        "pair_correlation": rdf_out,
-        "grain_shapes": grain_shapes.per_grain,
-        "equilibrium": eq.figures,
-        "interpenetration": {
-            "max": ip.max,
-            "mean": ip.mean,
-            "expansion_k": k,
-            "k": ip.k,
-            "fraction_overlapping": ip.fraction,
-            "fraction_deep": ip.fraction_deep,
-            "phi_relative_overestimate": k,
-        },
-        "homogeneity": {
-            "z": hom.z,
-            "proportions": hom.proportions,
-            "nominal": hom.nominal,
-            "bulk_mean": hom.bulk_mean,
-            "bulk_std": hom.bulk_std,
-            "segregated_layers": {name: int((flags & hom.bulk_layers).sum()) for name, flags in hom.segregated.items()},
-        },
-        **({"size_classes": {
-            "sieves": classes.edges,
-            "passing": classes.passing,
-            "passing_bulk": classes.passing_bulk,
-            "counts": classes.counts,
-            "volume_shares": classes.volume_shares,
-            "bulk_counts": classes.bulk_counts,
-            "coordination": classes.coordination_by_class,
-            "rattler_fraction": classes.rattler_fraction_by_class,
-            "z": classes.z,
-            "profile": classes.profile,
-        }} if several_sizes else {}),
+        "bulk": sf.region_to_dict(),
+        "solid_fraction": sf.to_dict(expansion_k=computed["interpenetration"].expansion_k),
+        "coordination": co.to_dict(),
+        "order": computed["order"].to_dict(),
+        "pair_correlation": computed["pair_correlation"].to_dict(),
+        "grain_shapes": grain_shapes.to_dict(),
+        "equilibrium": computed["equilibrium"].to_dict(),
+        "interpenetration": computed["interpenetration"].to_dict(),
+        "homogeneity": computed["homogeneity"].to_dict(),
+        **({"size_classes": classes.to_dict()} if several_sizes else {}),
         "warnings": messages,
     }
 

@@ -18,12 +18,12 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, result
+from granpack.analysis._base import Compute, as_array, result
 from granpack.analysis.coordination import Coordination
 from granpack.analysis.solid_fraction import analysed_region, in_region, slice_volumes
 from granpack.packing import Packing
 
-__all__ = ["SizeClasses", "DEFAULT_CLASSES"]
+__all__ = ["SizeClasses", "DEFAULT_CLASSES", "plot_class_profiles"]
 
 #: classes between the smallest and largest grain, evenly spaced in log D, when no sieves are given
 DEFAULT_CLASSES = 4
@@ -168,17 +168,53 @@ class SizeClasses(Compute):
         """``(K,)`` bulk grains in each class."""
         return self._bulk_count.copy()
 
-    def plot(self, ax=None):
-        """The sieve curve (% passing against the sieve size, log axis), whole packing and bulk."""
-        import matplotlib.pyplot as plt
+    def to_dict(self) -> dict:
+        """The ``size_classes`` part of ``analysis.json``: ``sieves`` (the class bounds, d),
+        ``passing``, ``passing_bulk``, ``counts``, ``volume_shares``, ``bulk_counts``,
+        ``coordination`` and ``rattler_fraction`` (each class's bulk grains), and the layer
+        profile ``z``, ``profile``."""
+        return {
+            "sieves": self.edges,
+            "passing": self.passing,
+            "passing_bulk": self.passing_bulk,
+            "counts": self.counts,
+            "volume_shares": self.volume_shares,
+            "bulk_counts": self.bulk_counts,
+            "coordination": self.coordination_by_class,
+            "rattler_fraction": self.rattler_fraction_by_class,
+            "z": self.z,
+            "profile": self.profile,
+        }
 
-        ax = ax or plt.gca()
-        ax.semilogx(self.edges, 100 * self.passing, "o-", label="poured")
-        ax.semilogx(self.edges, 100 * self.passing_bulk, "s--", label="bulk")
-        ax.set_xlabel("sieve size D / d")
-        ax.set_ylabel("% passing by volume")
-        ax.legend()
+    def plot(self, ax):
+        """The classes' layer profiles (:func:`plot_class_profiles`) on ``ax``; returns ``ax``."""
+        plot_class_profiles(ax, self.to_dict())
         return ax
+
+
+def plot_class_profiles(ax, output: dict) -> None:
+    """Draw each size class's share of the layers' solid volume against the height on ``ax``,
+    its share of the whole packing dotted in the same colour (a class that sinks or floats leaves
+    its dotted line).
+
+    Pyplot-free: it draws on the given axes and creates no figure, so the same function serves a
+    computed :class:`SizeClasses` and a run's ``analysis.json`` (the ``grading`` figure of
+    ``granpack figures``).
+
+    Args:
+        ax: matplotlib axes.
+        output: a ``size_classes`` part (:meth:`SizeClasses.to_dict` or read from the file).
+    """
+    sieves, z = as_array(output["sieves"]), as_array(output["z"])
+    profile = np.atleast_2d(as_array(output["profile"]))
+    for k in range(len(sieves) - 1):
+        ax.plot(profile[k], z, marker=".", color=f"C{k}", label=f"{sieves[k]:.3g} - {sieves[k + 1]:.3g} d")
+        share = as_array(output["volume_shares"])[k]
+        ax.axvline(share, color=f"C{k}", linewidth=0.8, linestyle=":")
+    ax.set_xlabel("share of the layer's solid volume")
+    ax.set_ylabel("height z (d)")
+    ax.set_xlim(-0.02, 1.02)
+    ax.legend(title="size class", fontsize=8)
 
 
 def _passing(size: np.ndarray, volume: np.ndarray, edges: np.ndarray) -> np.ndarray:

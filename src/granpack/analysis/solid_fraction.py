@@ -24,12 +24,12 @@ import math
 
 import numpy as np
 
-from granpack.analysis._base import Compute, result
+from granpack.analysis._base import Compute, any_finite, as_array, result
 from granpack.analysis._kernels import slice_volumes_kernel
 from granpack.packing import Packing
 from granpack.rotations import quat_to_matrix
 
-__all__ = ["SolidFraction", "slice_volumes", "bulk_range"]
+__all__ = ["SolidFraction", "slice_volumes", "bulk_range", "plot_profile"]
 
 
 def slice_volumes(packing: Packing, z0: float, dz: float, nslices: int, groups: np.ndarray | None = None) -> np.ndarray:
@@ -221,18 +221,71 @@ class SolidFraction(Compute):
         """Standard deviation (ddof 1) of :attr:`layers` (``nan`` with fewer than two layers)."""
         return self._std
 
-    def plot(self, ax=None):
-        """Profile phi(z) with the bulk region shaded; returns the axes."""
-        import matplotlib.pyplot as plt
+    def to_dict(self, expansion_k: float = math.nan) -> dict:
+        """The ``solid_fraction`` part of ``analysis.json``: ``bulk``, ``std``, ``profile_z``,
+        ``profile_phi``, ``layers``, ``plateau``, and ``corrected_for_overlap`` = bulk / (1 + k),
+        the bulk value once the overlaps are released, from the expansion coefficient ``k`` of
+        :class:`~granpack.analysis.interpenetration.Interpenetration` (nan when ``k`` is not finite).
+        """
+        return {
+            "bulk": self.bulk,
+            "std": self.std,
+            "profile_z": self.profile_z,
+            "profile_phi": self.profile_phi,
+            "layers": self.layers,
+            "plateau": self.plateau,
+            "corrected_for_overlap": self.bulk / (1.0 + expansion_k) if math.isfinite(expansion_k) else math.nan,
+        }
 
-        ax = ax or plt.gca()
-        ax.plot(self.profile_phi, self.profile_z, lw=1)
-        if self.has_bulk:
-            ax.axhspan(self.z_bottom, self.z_top, color="0.9", zorder=0, label=f"bulk: {self.bulk:.4f}")
-            ax.legend(loc="best")
-        ax.set_xlabel("solid fraction")
-        ax.set_ylabel("z / d")
+    def region_to_dict(self) -> dict:
+        """The ``bulk`` part of ``analysis.json``, the region every bulk figure reads: ``z_bottom``,
+        ``z_top``, ``z_surface`` (d), ``valid`` (:attr:`has_bulk`), ``n_bottom``, ``n_top``."""
+        return {
+            "z_bottom": self.z_bottom,
+            "z_top": self.z_top,
+            "z_surface": self.z_surface,
+            "valid": self.has_bulk,
+            "n_bottom": self.n_bottom,
+            "n_top": self.n_top,
+        }
+
+    def plot(self, ax):
+        """The profile figure (:func:`plot_profile`) on ``ax``; returns ``ax``."""
+        plot_profile(ax, self.to_dict(), self.region_to_dict())
         return ax
+
+
+def plot_profile(ax, output: dict | None, region: dict | None = None) -> bool:
+    """Draw the solid-fraction profile phi(z) on ``ax``: the slice averages, the bulk region
+    shaded, the bulk value dashed with its standard deviation.
+
+    Pyplot-free: it draws on the given axes and creates no figure, so the same function serves a
+    computed :class:`SolidFraction` and a run's ``analysis.json`` (``granpack figures``).
+
+    Args:
+        ax: matplotlib axes.
+        output: a ``solid_fraction`` part (:meth:`SolidFraction.to_dict` or read from the file).
+        region: the ``bulk`` part (:meth:`SolidFraction.region_to_dict`); no shading without it.
+
+    Returns:
+        Whether there was a profile to draw (nothing is drawn otherwise).
+    """
+    sf = output or {}
+    z, phi = as_array(sf.get("profile_z")), as_array(sf.get("profile_phi"))
+    if not any_finite(phi) or len(z) != len(phi):
+        return False
+    ax.plot(phi, z, color="C0", label="slice average")
+    region = region or {}
+    if region.get("valid") and all(isinstance(region.get(k), (int, float)) for k in ("z_bottom", "z_top")):
+        ax.axhspan(region["z_bottom"], region["z_top"], color="0.9", zorder=0, label="bulk region")
+    bulk, std = sf.get("bulk"), sf.get("std")
+    if isinstance(bulk, (int, float)) and math.isfinite(bulk):
+        label = f"bulk {bulk:.4f}" + (f" ± {std:.4f}" if isinstance(std, (int, float)) and math.isfinite(std) else "")
+        ax.axvline(bulk, color="C3", linestyle="--", label=label)
+    ax.set_xlabel("solid fraction φ")
+    ax.set_ylabel("height z (d)")
+    ax.legend(loc="best")
+    return True
 
 
 def analysed_region(packing: Packing, z_range: tuple[float, float] | None = None) -> tuple[float, float, bool]:
