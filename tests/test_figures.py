@@ -13,16 +13,15 @@ from matplotlib.image import imread
 from granpack.box import Box
 from granpack.contact.contacts import ContactSet
 from granpack.errors import InputError
-from granpack.figures import (
+from granpack.campaign.figures import (
     _coordination_figure,
     _homogeneity_figure,
     _pair_correlation_figure,
     _read_runs,
     campaign_figures,
     make_figures,
-    render_packing,
-    save_figure,
 )
+from granpack.figures import render_packing, save_figure
 from granpack.packing import Packing
 from granpack.rotations import random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere
@@ -212,7 +211,7 @@ def test_a_family_of_one_point_gets_the_share_scale_and_its_legend_beside_the_po
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from granpack.figures import _versus_share
+    from granpack.campaign.figures import _versus_share
 
     runs = _read_runs(campaign_dir)
     runs = runs[(runs["family"] != "spheres") | (runs["share"] == 0)]
@@ -257,7 +256,7 @@ def test_a_run_of_one_population_has_no_homogeneity_figure_and_says_why(tmp_path
 
 
 def test_the_order_figure_shows_the_deposit_before_gravity_beside_the_final_order(campaign_dir):
-    from granpack.figures import _versus_share
+    from granpack.campaign.figures import _versus_share
 
     runs = _read_runs(campaign_dir)
     runs["run.initial_order.Q00"] = 0.02
@@ -276,7 +275,7 @@ def test_a_campaign_of_gradings_draws_its_solid_fraction_against_the_exponent(ca
     runs["grading"] = np.where(runs["family"] == "flat", "", "fuller")
     runs["grading_parameter"] = np.where(runs["family"] == "flat", np.nan, 0.3 + runs["share"])
     runs.to_csv(campaign_dir / "runs.csv", index=False)
-    from granpack.figures import _versus_grading
+    from granpack.campaign.figures import _versus_grading
 
     fig = _versus_grading(_read_runs(campaign_dir))
     ax = fig.axes[0]
@@ -299,3 +298,52 @@ def test_the_runs_table_names_each_runs_grading():
     assert grading_of(spec.runs[0]) == ("fuller", 0.45)
     curve, value = grading_of(spec.runs[1])
     assert curve == "" and math.isnan(value)
+
+
+def _lines(ax) -> list:
+    return [(line.get_label(), line.get_xydata()) for line in ax.get_lines()]
+
+
+def test_a_computed_quantity_draws_from_its_own_part_what_the_run_figure_draws_from_the_file(tmp_path, rng):
+    """One plotting path: a quantity's ``.plot(ax)`` draws from its ``to_dict()`` the lines that
+    ``granpack figures`` draws from the run's analysis.json, through the same function."""
+    import warnings
+
+    from matplotlib.figure import Figure
+    from packing_builders import random_pinacoids
+
+    from granpack.analysis import Homogeneity, PairCorrelation, SolidFraction, analyze_run
+    from granpack.analysis.homogeneity import plot_proportions
+    from granpack.analysis.pair_correlation import plot_g
+    from granpack.analysis.size_classes import SizeClasses, plot_class_profiles
+    from granpack.analysis.solid_fraction import plot_profile
+    from granpack.figures import read_analysis
+    from granpack.io.gsd import write_packing
+
+    packing = random_pinacoids(400, rng)
+    write_packing(tmp_path / "final.gsd", packing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        analyze_run(tmp_path)
+        sf = SolidFraction().compute(packing)
+        bulk = (sf.z_bottom, sf.z_top)
+        quantities = {
+            "solid_fraction": (sf, lambda ax, data: plot_profile(ax, data["solid_fraction"], data["bulk"])),
+            "pair_correlation": (PairCorrelation(200, 4.0, bulk).compute(packing),
+                                 lambda ax, data: plot_g(ax, data["pair_correlation"]) and ax.legend()),
+            "homogeneity": (Homogeneity(1.0, bulk).compute(packing),
+                            lambda ax, data: plot_proportions(ax, data["homogeneity"])),
+            "size_classes": (SizeClasses(None, 1.0, bulk).compute(packing),
+                             lambda ax, data: plot_class_profiles(ax, data["size_classes"])),
+        }
+    data = read_analysis(tmp_path)
+    assert sf.has_bulk and data["bulk"]["valid"]
+    for key, (quantity, from_file) in quantities.items():
+        mine, theirs = Figure().add_subplot(), Figure().add_subplot()
+        assert quantity.plot(mine) is mine
+        from_file(theirs, data)
+        assert len(_lines(mine)) >= 2, key
+        for (label, xy), (label_file, xy_file) in zip(_lines(mine), _lines(theirs), strict=True):
+            assert label == label_file and np.allclose(xy, xy_file, equal_nan=True), (key, label)
+        assert mine.get_xlabel() == theirs.get_xlabel() and mine.get_ylabel() == theirs.get_ylabel(), key
+        assert [t.get_text() for t in mine.get_legend().get_texts()] == [t.get_text() for t in theirs.get_legend().get_texts()]

@@ -527,7 +527,7 @@ def figures(
     ),
 ) -> None:
     """PNG/SVG figures for a run or a campaign, written into RUN_DIR/figures/; says which it skipped and why."""
-    from granpack.figures import make_figures
+    from granpack.campaign.figures import make_figures
 
     paths = make_figures(run_dir, mixtures=mixture or None)
     if paths:

@@ -1,8 +1,11 @@
 """Analysis of a static packing: one module per quantity, each a compute object.
 
 ``Quantity(options).compute(packing)`` returns the object; results are read-only properties that
-raise :class:`NotComputedError` before ``compute``; ``.plot(ax)`` draws the standard figure.
-:func:`analyze_packing` / :func:`analyze_run` gather everything into ``analysis.json``.
+raise :class:`NotComputedError` before ``compute``; ``to_dict()`` is the quantity's part of
+``analysis.json``, which :func:`analyze_packing` / :func:`analyze_run` assemble. The quantities
+with a figure (solid fraction, g(r), homogeneity, size classes) draw it with ``.plot(ax)`` through
+a pyplot-free function of their module, the one that ``granpack figures`` calls with the part read
+from the file (:mod:`granpack.figures`): one implementation of each figure.
 """
 
 from __future__ import annotations

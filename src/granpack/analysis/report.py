@@ -11,7 +11,7 @@ several sizes only}, ``grain_shapes`` {elongation, flatness, sphericity, convexi
 grain}, ``n_particles``, ``populations`` (each with its coordination, order, shape descriptors and
 shape classes), ``seed``, ``version``; extras:
 ``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
-``nan`` here and ``null`` in the file.
+``nan`` here and ``null`` in the file. Each quantity's key holds its ``to_dict()``.
 """
 
 from __future__ import annotations
