@@ -307,3 +307,31 @@ def test_step_parameters_take_a_tilted_gravity_and_reject_a_bad_one():
         StepParameters(gravity=(0.0, np.nan, -1.0))
     with pytest.raises(ValueError, match="gravity"):
         StepParameters(gravity=(0.0, -1.0))
+
+
+# --- the NNCG momentum with friction ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tilt", [0.0, 0.3])
+def test_nncg_momentum_with_friction_solves_a_tall_stack_to_the_same_velocities_in_fewer_sweeps(tilt):
+    """The frictional NLGS with the NNCG momentum (:func:`granpack.nscd.nlgs._solve_coulomb`,
+    ``solver.acceleration = "nncg"``) converges to the velocities of plain NLGS on the 4 x 4 x 12
+    lattice of touching spheres from a cold start (μ = 0.5; gravity tilted by ``tan θ = tilt``
+    in the free velocities, so that the tangential impulses work), in under a third of the sweeps
+    (measured 190 against 1090-1100)."""
+    from test_nscd_solver import _lattice_problem
+
+    from granpack.nscd import NLGSOptions, assemble, solve
+
+    _, pr, contacts = _lattice_problem(layers=12)
+    free = pr.free_velocity.copy()
+    gravity = slope(tilt)
+    free[:-1, 0] = H * gravity[0]
+    free[:-1, 2] = H * gravity[2]
+    problem = assemble(contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, free, H, friction=0.5)
+    plain, info_plain = solve(problem, NLGSOptions(tolerance=1e-8, max_iterations=200000))
+    nncg, info_nncg = solve(problem, NLGSOptions(tolerance=1e-8, max_iterations=200000, nncg=True))
+    assert info_plain.converged and info_nncg.converged
+    assert problem.residual(nncg) < 1e-8 and problem.residual(plain) < 1e-8
+    np.testing.assert_allclose(problem.velocity(nncg), problem.velocity(plain), atol=1e-8)
+    assert info_nncg.iterations < info_plain.iterations / 3

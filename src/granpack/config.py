@@ -607,7 +607,7 @@ class SolverConfig(_Model):
     check_every: int = _setting(10, ge=1, le=10_000_000, description="NLGS sweeps between two convergence checks.")
     acceleration: Literal["nncg", "none"] = _setting(
         "nncg", description="'nncg': the momentum of nonsmooth nonlinear conjugate gradients on each symmetric "
-        "pair of sweeps (frictionless; Gauss-Seidel alone carries a load down a pile one layer per sweep); "
+        "pair of sweeps (with or without friction; Gauss-Seidel alone carries a load down a pile one layer per sweep); "
         "'none': plain NLGS.")
 
 

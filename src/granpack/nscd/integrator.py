@@ -117,8 +117,8 @@ class StepParameters:
         parallel_points: frictionless problems of at least this many points are swept by two
             threads, the lower and the upper part of the pile at once (:func:`_sides`,
             :func:`granpack.nscd.nlgs.solve`).
-        nncg: the velocity solve and the position correction use the NNCG momentum
-            (:mod:`granpack.nscd.nlgs`).
+        nncg: the velocity solve (frictionless or with friction) and the position correction use
+            the NNCG momentum (:mod:`granpack.nscd.nlgs`).
         gravity: acceleration of gravity ``(g_x, g_y, g_z)``, g. A run always has ``(0, 0, -1)``
             (no config key: the wall is the floor, and the equilibrium criteria, the energies and
             the alert distance take gravity vertical). Tests tilt it, ``(sin θ, 0, -cos θ)``, to

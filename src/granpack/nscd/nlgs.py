@@ -19,8 +19,9 @@ points are exactly the Signorini–Coulomb solutions):
 .. math:: r_T \\leftarrow \\mathrm{proj}_{D(μ r_n)}\\big(r_T - ρ_T u_T\\big), \\qquad ρ_T = 1/\\max(W_{tt}, W_{ss})
 
 Sweeps alternate forward and backward over the points (symmetric Gauss–Seidel, deterministic);
-frictionless problems may add the NNCG momentum to each pair of sweeps
-(:func:`_solve_frictionless`, docs: Method > NSCD, NNCG momentum).
+each pair of sweeps may get the NNCG momentum (:func:`_solve_frictionless`; with friction
+:func:`_solve_coulomb`, the momentum projected on the Coulomb cone; docs: Method > NSCD, NNCG
+momentum).
 Convergence: LMGC90's 'Quad' norm (docs: Method > NSCD, convergence) evaluated on the sweep that ends each block
 of ``check_every`` sweeps, from the last two iterates ``r^k``, ``r^{k-1}`` of each active point
 (``r^k ≠ 0`` or ``r^{k-1} ≠ 0``), ``ΔU = W_αα (r^k - r^{k-1})``, ``r̄ = (r^k + r^{k-1})/2``:
@@ -86,8 +87,9 @@ class NLGSOptions:
             (:func:`_solve_frictionless_two_parts`; the result does not depend on the number of
             threads Numba has); smaller ones by one (the threads' start-up would cost more than
             they save).
-        nncg: frictionless problems are solved with the NNCG momentum
-            (:func:`_solve_frictionless`).
+        nncg: the sweeps get the NNCG momentum: :func:`_solve_frictionless`, and with friction
+            :func:`_solve_coulomb` (the momentum projected on the Coulomb cone; measured to converge
+            wherever plain NLGS does, in half the sweeps while a pile moves: docs, design notes).
     """
 
     tolerance: float = 1e-4
@@ -674,7 +676,7 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
         r = np.ascontiguousarray(r0, dtype=np.float64).copy()
         v = problem.velocity(r)
         it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v, tol,
-                                     max_it, every, False)
+                                     max_it, every, bool(options.nncg))
         impulse = r
     else:
         impulse = np.zeros((problem.n_points, 3))
