@@ -346,4 +346,5 @@ def test_a_computed_quantity_draws_from_its_own_part_what_the_run_figure_draws_f
         for (label, xy), (label_file, xy_file) in zip(_lines(mine), _lines(theirs), strict=True):
             assert label == label_file and np.allclose(xy, xy_file, equal_nan=True), (key, label)
         assert mine.get_xlabel() == theirs.get_xlabel() and mine.get_ylabel() == theirs.get_ylabel(), key
-        assert [t.get_text() for t in mine.get_legend().get_texts()] == [t.get_text() for t in theirs.get_legend().get_texts()]
+        legends = [[t.get_text() for t in ax.get_legend().get_texts()] for ax in (mine, theirs)]
+        assert legends[0] == legends[1], key

@@ -56,5 +56,6 @@ class Equilibrium(Compute):
         return self._report.passed
 
     def to_dict(self) -> dict:
-        """The ``equilibrium`` part of ``analysis.json``: :attr:`figures`."""
+        """The ``equilibrium`` part of ``analysis.json``:
+        :attr:`~granpack.analysis.balance.Equilibrium.figures`."""
         return self.figures

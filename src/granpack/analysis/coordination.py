@@ -334,10 +334,11 @@ class Coordination(Compute):
         return self._backbone["Nc"]
 
     def to_dict(self) -> dict:
-        """The ``coordination`` part of ``analysis.json``: the backbone figures (:attr:`figures`),
-        ``rattler_fraction``, ``with_rattlers``, ``n_analysed``, the settings the types were
-        drawn with (``force_tol``, ``type_rule``, ``point_tol``, ``gap_tol``, ``rank_tol``), and the
-        figures of the cross-check classifications ``gap_rule`` and ``geometric`` (:attr:`by_rule`)."""
+        """The ``coordination`` part of ``analysis.json``: the backbone figures
+        (:attr:`~granpack.analysis.coordination.Coordination.figures`), ``rattler_fraction``,
+        ``with_rattlers``, ``n_analysed``, the settings the types were drawn with (``force_tol``,
+        ``type_rule``, ``point_tol``, ``gap_tol``, ``rank_tol``), and the figures of the
+        cross-check classifications ``gap_rule`` and ``geometric`` (:attr:`by_rule`)."""
         by_rule = self.by_rule
         return {
             **self.figures,

@@ -200,7 +200,8 @@ class PairCorrelation(Compute):
         }
         if self.partials:
             partial = self.partial
-            out["partial"] = {f"{a}|{b}": partial[i, j] for i, a in enumerate(self._names) for j, b in enumerate(self._names)}
+            names = self._names
+            out["partial"] = {f"{a}|{b}": partial[i, j] for i, a in enumerate(names) for j, b in enumerate(names)}
         return out
 
     def plot(self, ax):
