@@ -75,3 +75,19 @@ def test_pinacoid_examples_use_the_cells_the_validation_plans(validate_pinacoids
         # the script's defaults: the study's 8 d cell for 3000 grains, an 8 d column, a 3 d floor
         lateral, n, _ = vp.plan_cell(populations, config.n_particles, vp.nominal_lateral(config.n_particles), 8.0, 3.0)
         assert (config.lateral_size, config.n_particles) == (lateral, n), name
+
+
+def test_the_picture_configs_leave_a_bulk_region(tmp_path):
+    """examples/pictures/ (the docs' home-page pictures): no short-column warning either; the
+    scans' config reads the 20 surfaces that make_scans.py writes beside it."""
+    spec = importlib.util.spec_from_file_location("make_scans", EXAMPLES / "pictures" / "make_scans.py")
+    make_scans = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_scans)
+    make_scans.main(tmp_path / "scans")
+    (tmp_path / "scans.toml").write_text((EXAMPLES / "pictures" / "scans.toml").read_text(encoding="utf-8"), encoding="utf-8")
+    for path in (EXAMPLES / "pictures" / "rocks.toml", tmp_path / "scans.toml"):
+        config = load_config(path)
+        mixture = Mixture.from_config(config)
+        assert column_warning(config, mixture) is None, path.name
+        assert _expected_column(config) >= 5.4, path.name
+    assert len(mixture.population_shapes[0]) == 20
