@@ -13,7 +13,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from granpack.contact.detect import _Tables
-from granpack.contact.narrowphase import _KEEP_BAND, poly_poly
+from granpack.contact.narrowphase import _KEEP_BAND, _general_tables, poly_poly
 from granpack.contact.separating_axes import SatResult, _sat, world_geometry
 from granpack.rotations import quat_to_matrix, random_quaternions
 from granpack.shapes import ConvexPolyhedron, ShapeTable
@@ -125,11 +125,9 @@ def kernel_inputs(table, tables, kind):
     scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
            np.empty(4, np.int64), np.empty((m, 3)), np.empty((m, 3)), np.empty((3, 2 * m)), np.empty(2 * m))
     tab = tables.tab(kind)
-    max_edges = int(np.diff(table.edge_start).max())
-    inradius = np.array([s.face_offsets.min() for s in table.shapes])
-    max_faces = int(np.diff(table.face_start).max())
-    gauss = (table.edge_start, table.edge_faces, tables.edge_dir, tables.edge_cos, tables.axis_extent, inradius,
-             np.empty((2, max_faces)), np.empty((4, max_edges)), np.empty(max_edges, np.int64))
+    gauss = _general_tables(tab, tables.axis_extent, tables.edge_arc, table.n_kinds)
+    inradius = gauss[5]
+    assert np.allclose(inradius, [s.face_offsets.min() for s in table.shapes])
     symmetric = (tables.half_start, tables.half, table.axis_start, tables.axis_support)
     return scr, tab, gauss, symmetric, inradius
 

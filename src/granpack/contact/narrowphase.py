@@ -296,10 +296,10 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
 
 
 @jit
-def _general_tables(tab, axis_extent, edge_cos, n_kinds):
+def _general_tables(tab, axis_extent, edge_arc, n_kinds):
     """The ``gauss`` tables and scratch of :func:`~granpack.contact.separating_axes._sat` for
     polyhedra that are not both centrally symmetric: ``(edge_start, edge_faces, edge_dir,
-    edge_cos, axis_extent, inradius, W, Z, sel)``, with ``inradius[k]`` the radius of the largest
+    edge_arc, axis_extent, inradius, W, Z, sel, edges, face_start, face_offsets)``, with ``inradius[k]`` the radius of the largest
     ball about the centre inside kind ``k`` (its smallest face offset, d; 0 for a sphere), which
     prunes the axes of every pair."""
     face_start, face_offsets, edge_start = tab[1], tab[2], tab[5]
@@ -309,13 +309,13 @@ def _general_tables(tab, axis_extent, edge_cos, n_kinds):
             inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
     max_edges = max(np.diff(edge_start).max(), 1)
     max_faces = max(np.diff(face_start).max(), 1)
-    return (edge_start, tab[8], tab[7], edge_cos, axis_extent, inradius, np.empty((2, max_faces)),
-            np.empty((4, max_edges)), np.empty(max_edges, np.int64))
+    return (edge_start, tab[8], tab[7], edge_arc, axis_extent, inradius, np.empty((2, max_faces)),
+            np.empty((4, max_edges)), np.empty(max_edges, np.int64), tab[6], face_start, face_offsets)
 
 
 @jit
 def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support,
-                 axis_extent, edge_cos, pair_start, pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i,
+                 axis_extent, edge_arc, pair_start, pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i,
                  prev_j, prev_n, i0, i1):
     """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
 
@@ -339,7 +339,8 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             ``v`` along its own face axes ``a``, d (the face-axis bound of
             :func:`~granpack.contact.separating_axes._sat` for bodies that are not both
             centrally symmetric).
-        edge_cos: ``(NE,)`` per edge, the cosine between the normals of its two faces.
+        edge_arc: ``(NE, 2)`` per edge, the cosine between the normals of its two faces and the
+            secant of half their angle (:func:`~granpack.contact.detect._edge_arcs`).
         pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
         pair_axis: ``(C,)`` per candidate pair of polyhedra, the code of the axis that separated
             it at the previous call (-1: none), read and updated (see
@@ -381,7 +382,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
-    gauss = _general_tables(tab, axis_extent, edge_cos, len(radius))
+    gauss = _general_tables(tab, axis_extent, edge_arc, len(radius))
     inradius = gauss[5]
     m = 0
     npt = 0

@@ -130,6 +130,27 @@ def _separation(X, na, nb, ux, uy, uz):
 
 
 @jit(inline="always")
+def _own_axis_separation(X, c0, c1, ux, uy, uz, lo, hi, own_is_a):
+    """Signed separation along one body's own face axis ``u`` of :func:`_separation`, from that
+    body's interval ``[lo, hi]`` along ``u`` (d, in A's frame: a constant of its shape plus its
+    centre's projection) and the other body's vertices, columns ``c0:c1`` of ``X``: half the
+    projections of :func:`_separation`. ``own_is_a``: the axis is A's (the other body is B)."""
+    lo_o = math.inf
+    hi_o = -math.inf
+    for k in range(c0, c1):
+        d = ux * X[0, k] + uy * X[1, k] + uz * X[2, k]
+        lo_o = min(lo_o, d)
+        hi_o = max(hi_o, d)
+    if own_is_a:
+        s1, s2 = lo_o - hi, lo - hi_o
+    else:
+        s1, s2 = lo - hi_o, lo_o - hi
+    if s1 >= s2:
+        return s1, 1.0
+    return s2, -1.0
+
+
+@jit(inline="always")
 def _half_support(Y, k0, k1, ux, uy, uz):
     """Support ``h(u) = max_k |u . Y[:, k]|`` of a centrally symmetric body about its centre, from
     one vertex of each antipodal pair (columns ``k0:k1``, offsets from the centre ``c``, d): its
@@ -242,10 +263,10 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
             return _separated(cached if attempt == 0 else -1)
     if not sym:
         extent, inradius = gauss[4], gauss[5]
-        far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert)
+        far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert, True)
         if far:
             return _separated(kfa - aa0)
-        far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert)
+        far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert, False)
         if far:
             return _separated(nfa + kfb - ab0)
         far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb,
@@ -303,7 +324,7 @@ def _arc_max(a1, a2, c, slack):
 
 
 @jit(inline="always")
-def _face_axes(X, na, nb, ax, k0, k1, dx, dy, dz, extent, e0, rho, alert):
+def _face_axes(X, na, nb, ax, k0, k1, dx, dy, dz, extent, e0, rho, alert, own_is_a):
     """Best of one body P's face axes (world rows ``k0:k1`` of ``ax``) for the vertex block ``X``
     of :func:`_sat`; the other body Q is at ``d`` from P (d).
 
@@ -335,7 +356,15 @@ def _face_axes(X, na, nb, ax, k0, k1, dx, dy, dz, extent, e0, rho, alert):
             ad = ax[k, 0] * dx + ax[k, 1] * dy + ax[k, 2] * dz
             if max(ad - extent[e0 + k - k0, 1], extent[e0 + k - k0, 0] - ad) - rho < sf - 1e-12:
                 continue
-        s, g = _separation(X, na, nb, ax[k, 0], ax[k, 1], ax[k, 2])
+        # P's interval along its own axis is a constant of its shape about its centre, which is
+        # A's origin or B's offset o = -d
+        if own_is_a:
+            s, g = _own_axis_separation(X, na, na + nb, ax[k, 0], ax[k, 1], ax[k, 2], extent[e0 + k - k0, 0],
+                                        extent[e0 + k - k0, 1], True)
+        else:
+            ad = -(ax[k, 0] * dx + ax[k, 1] * dy + ax[k, 2] * dz)
+            s, g = _own_axis_separation(X, 0, na, ax[k, 0], ax[k, 1], ax[k, 2], ad + extent[e0 + k - k0, 0],
+                                        ad + extent[e0 + k - k0, 1], False)
         if s > alert:
             return True, s, k, g
         if s > sf or (s == sf and k < kf):
@@ -456,24 +485,28 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
 
     (``c``, ``d`` on either side of A's great circle, ``n1``, ``n2`` of B's, both arcs in one
     hemisphere): four dot products per pair of edges, so only the few crossing pairs are
-    projected on. The axis of a crossing pair is formed, pruned (:func:`_unit_cross`, threshold
-    ``max(best, se) - margin + rin - 1e-12``, d) and measured exactly as for every pair of
-    directions (:func:`_direction_pair_axes`), from the two edges' direction rows, with ``X`` the
-    vertex block of :func:`_sat`; among equal separations the pair of directions ``(i, j)``
-    first in ``j``-major order is kept.
+    measured. The axis ``u`` of a crossing pair, the cross product of the two edges' direction
+    rows turned towards ``n1 + n2``, lies on both arcs: A's support along ``u`` is its edge (a
+    point ``p`` of it) and B's along ``-u`` is its edge (``q``), so the separation is exact from
+    those two points, :math:`s(u) = u \\cdot (o + q - p)`, without projecting the vertices. Among
+    equal separations the pair of directions ``(i, j)`` first in ``j``-major order is kept; axes
+    are pruned by :func:`_unit_cross` (threshold ``max(best, se) - margin + rin - 1e-12``, d).
 
-    Whole edges are pruned first by the same bound: along the axis of a crossing pair, oriented
-    so that A's edge is A's support, :math:`s(u) \\le u \\cdot o - \\rho_A - \\rho_B` with ``u`` on
-    both arcs, so an edge of A (of B) whose arc's largest :math:`u \\cdot o` (:func:`_arc_max`; B's
-    arc taken negated) is below the threshold crosses no arc worth trying: only the edges facing
-    the other body are paired.
+    Whole edges are pruned first: for ``u`` on A's arc, :math:`s(u) \\le u \\cdot (o - p) -
+    \\rho_B`, and :math:`n_k \\cdot (o - p) = n_k \\cdot o - d_k` with ``d_k`` the offset of face
+    ``k`` (``p`` lies on both faces), so :func:`_arc_max` of those two values bounds the edge's
+    every axis (B's edges likewise, along ``-m`` of their arc, less ``rho_A``); an edge whose bound
+    is below ``max(best, se) - margin - 1e-12`` pairs with no edge worth trying, and a cheaper bound,
+    the larger value times the secant of half the arc (no square root), rejects most of them first.
+    Only the edges facing the other body are paired.
 
-    ``gauss`` is ``(edge_start, edge_faces, edge_dir, edge_cos, extent, inradius, W, Z, sel)``:
-    the shape table's edge rows per kind and each edge's two faces (local indices), each edge's
-    local direction index and the cosine between its two face normals, the extents of
-    :func:`_face_axes` and the radius ``rho`` of each kind, and scratch ``W`` (``(2, >= the
-    larger face count)``), ``Z`` (``(4, >= B's edge count)``) and ``sel`` (``(>= B's edge
-    count,)``, int).
+    ``gauss`` is ``(edge_start, edge_faces, edge_dir, edge_arc, extent, inradius, W, Z, sel, edges,
+    face_start, face_offsets)``: the shape table's edge rows per kind, each edge's two faces (local
+    indices) and local direction index, the cosine between its two face normals and the secant of
+    half their angle (:func:`~granpack.contact.detect._edge_arcs`), the extents of
+    :func:`_face_axes`, the radius ``rho`` of each kind, scratch ``W`` (``(2, >= the larger face
+    count)``), ``Z`` (``(4, >= B's edge count)``) and ``sel`` (``(>= B's edge count,)``, int), and
+    the shape table's edges (vertex pairs), face rows and face offsets.
 
     Returns ``(far, se, ie, je, ex, ey, ez, code)``: ``far`` when an axis separates by more than
     ``alert`` (d), its code ``i ndb + j`` (local direction indices); otherwise the best
@@ -481,23 +514,32 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
     oriented from A to B.
     """
     pv, pf, pa, pd, rv, fn, ax, dr = geo
-    edge_start, edge_faces, edge_dir, edge_cos, _, _, W, Z, sel = gauss
+    edge_start, edge_faces, edge_dir, edge_arc, _, inradius, W, Z, sel, edges, face_start, face_offsets = gauss
+    a0, b0 = pv[a], pv[b]
     fa0, fb0, da0, db0 = pf[a], pf[b], pd[a], pd[b]
+    oa0, ob0 = face_start[ka], face_start[kb]
     ea0, ea1, eb0, eb1 = edge_start[ka], edge_start[ka + 1], edge_start[kb], edge_start[kb + 1]
     ndb = pd[b + 1] - db0
     t = best - margin + rin - 1e-12
+    # the edges' own bound (below) is compared with the best separation less the margin
+    t_edge = best - margin - 1e-12
+    rho_a, rho_b = inradius[ka], inradius[kb]
     slack = 1e-9 * math.sqrt(ox * ox + oy * oy + oz * oz)
     for f in range(pf[a + 1] - fa0):
-        W[0, f] = fn[fa0 + f, 0] * ox + fn[fa0 + f, 1] * oy + fn[fa0 + f, 2] * oz
+        W[0, f] = fn[fa0 + f, 0] * ox + fn[fa0 + f, 1] * oy + fn[fa0 + f, 2] * oz - face_offsets[oa0 + f]
     for f in range(pf[b + 1] - fb0):
-        W[1, f] = -(fn[fb0 + f, 0] * ox + fn[fb0 + f, 1] * oy + fn[fb0 + f, 2] * oz)
+        W[1, f] = -(fn[fb0 + f, 0] * ox + fn[fb0 + f, 1] * oy + fn[fb0 + f, 2] * oz) - face_offsets[ob0 + f]
     nsel = 0
     for e in range(eb1 - eb0):
         f1, f2 = edge_faces[eb0 + e, 0], edge_faces[eb0 + e, 1]
-        # B's arc is that of -m1, -m2: the largest u . o over it is the largest of -m . o over m1..m2
-        Z[3, e] = _arc_max(W[1, f1], W[1, f2], edge_cos[eb0 + e], slack)
+        # B's arc is that of -m1, -m2, B's edge at q on both faces (m . q their offsets): along
+        # u = -m of the arc, s(u) = u . (o + q) - h_A(u) <= -m . o - m . q - rho_A
+        top = max(W[1, f1], W[1, f2])
+        if (top * edge_arc[eb0 + e, 1] if top > 0.0 else top) + slack - rho_a < t_edge:
+            continue  # the cheap bound of _arc_max's, no square root
+        Z[3, e] = _arc_max(W[1, f1], W[1, f2], edge_arc[eb0 + e, 0], slack) - rho_a
         m1, m2 = fb0 + f1, fb0 + f2
-        if Z[3, e] < t:
+        if Z[3, e] < t_edge:
             continue
         # q = (-m2) x (-m1) = m2 x m1
         Z[0, e] = fn[m2, 1] * fn[m1, 2] - fn[m2, 2] * fn[m1, 1]
@@ -509,15 +551,19 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
     for ea in range(ea0, ea1):
         n1 = fa0 + edge_faces[ea, 0]
         n2 = fa0 + edge_faces[ea, 1]
-        bound = _arc_max(W[0, edge_faces[ea, 0]], W[0, edge_faces[ea, 1]], edge_cos[ea], slack)
-        if bound < t:
+        # A's edge at p on both faces: along u of its arc, s(u) <= u . (o - p) - rho_B
+        top = max(W[0, edge_faces[ea, 0]], W[0, edge_faces[ea, 1]])
+        if (top * edge_arc[ea, 1] if top > 0.0 else top) + slack - rho_b < t_edge:
+            continue
+        bound = _arc_max(W[0, edge_faces[ea, 0]], W[0, edge_faces[ea, 1]], edge_arc[ea, 0], slack) - rho_b
+        if bound < t_edge:
             continue
         px = fn[n2, 1] * fn[n1, 2] - fn[n2, 2] * fn[n1, 1]
         py = fn[n2, 2] * fn[n1, 0] - fn[n2, 0] * fn[n1, 2]
         pz = fn[n2, 0] * fn[n1, 1] - fn[n2, 1] * fn[n1, 0]
         for r in range(nsel):
             e = sel[r]
-            if Z[3, e] < t:
+            if Z[3, e] < t_edge:
                 continue
             m1 = fb0 + edge_faces[eb0 + e, 0]
             m2 = fb0 + edge_faces[eb0 + e, 1]
@@ -533,12 +579,21 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
             ok, cx, cy, cz = _unit_cross(dr, da0 + i, db0 + j, ox, oy, oz, t)
             if not ok:
                 continue
-            s, g = _separation(X, na, nb, cx, cy, cz)
+            # the axis lies in A's edge's normal cone (the arc n1..n2) once turned towards
+            # n1 + n2, and then in B's edge's cone about -u: A's support along u is its edge, B's
+            # along -u is its edge, so the separation is exact from one vertex of each
+            if cx * (fn[n1, 0] + fn[n2, 0]) + cy * (fn[n1, 1] + fn[n2, 1]) + cz * (fn[n1, 2] + fn[n2, 2]) < 0.0:
+                cx, cy, cz = -cx, -cy, -cz
+            p = a0 + edges[ea, 0]
+            q = b0 + edges[eb0 + e, 0]
+            s = (cx * (ox + rv[q, 0] - rv[p, 0]) + cy * (oy + rv[q, 1] - rv[p, 1])
+                 + cz * (oz + rv[q, 2] - rv[p, 2]))
             if s > alert:
                 return True, s, i, j, cx, cy, cz, i * ndb + j
             if s > se or (s == se and (j < je or (j == je and i < ie))):
-                se, ie, je, ex, ey, ez = s, i, j, g * cx, g * cy, g * cz
+                se, ie, je, ex, ey, ez = s, i, j, cx, cy, cz
                 t = max(best, se) - margin + rin - 1e-12
-                if bound < t:
+                t_edge = max(best, se) - margin - 1e-12
+                if bound < t_edge:
                     break
     return False, se, ie, je, ex, ey, ez, -1
