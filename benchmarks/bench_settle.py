@@ -15,7 +15,9 @@ figure (kinetic energy and largest net force against time, one line per case).
 
 Cases (`--case NAME`, repeatable; default: all, in this order, about two hours on 2 cores):
 
-    spheres-1000, pinacoids-1000, flat-elongated-1000, bidisperse-pinacoids-1000, pinacoids-3000
+    spheres-1000, pinacoids-1000, flat-elongated-1000, bidisperse-pinacoids-1000, pinacoids-3000,
+    scans-1000 (the 20 scan-like grains of bench_shapes.py, written as STL into the output folder
+    and read as a "mesh" population, hulls reduced to 24 vertices)
 
 Usage::
 
@@ -38,6 +40,9 @@ from granpack.config import load_config_dict
 from granpack.io.run_folder import TIMELINE_FILE
 from granpack.simulation import run_packing
 
+#: the folder of the scan-like grains' STL files, in the output folder
+SCAN_FOLDER = "scan-shapes"
+
 LEVEL_ONE = {"max_net_force": 1e-3, "max_net_torque": 1e-3, "kinetic_criterion": 1e-7, "wall": 5e-3}
 
 
@@ -57,7 +62,23 @@ CASES = {
                                                   _pinacoid(1.0 / 3.0, (1.0, 1.0), 0.3)]},
     "pinacoids-3000": {"n_particles": 3000, "lateral_size": 8.0, "seed": 31,
                        "populations": [_pinacoid(1.0, (1.0, 1.0), 1.0)]},
+    # the scan-like grains of bench_shapes.py, written into the run's folder as STL files
+    "scans-1000": {"n_particles": 1000, "lateral_size": 4.0, "seed": 11,
+                   "populations": [{"shape": "mesh", "files": [f"{SCAN_FOLDER}/*.stl"], "size": 1.0,
+                                    "volume_fraction": 1.0}]},
 }
+
+
+def _scan_files(raw: dict, out: Path) -> Path:
+    """Write the scan-like STL files a case's mesh population reads into ``out/SCAN_FOLDER``;
+    returns ``out``, the folder its file patterns are relative to."""
+    from bench_shapes import write_scan_like_stls
+
+    if any(p.get("shape") == "mesh" for p in raw["populations"]):
+        folder = out / SCAN_FOLDER
+        folder.mkdir(parents=True, exist_ok=True)
+        write_scan_like_stls(folder)
+    return out
 
 
 def _value(text: str):
@@ -94,7 +115,7 @@ def run_case(name: str, out: Path, max_time: float, seed: int | None, overrides:
         key, value = item.split("=", 1)
         section, field = key.split(".")
         raw.setdefault(section, {})[field] = _value(value)
-    config = load_config_dict(raw, source=name)
+    config = load_config_dict(raw, source=name, base_dir=_scan_files(raw, out))
     run_dir = out / f"{name}-seed{config.seed}"
     t0, c0 = time.perf_counter(), time.process_time()
     summary = run_packing(config, run_dir, overwrite=True, progress="lines")

@@ -55,9 +55,9 @@ from granpack.state import ParticleState  # noqa: E402
 PINACOID_SPACING = 0.66
 
 
-def scan_like_shapes(folder: Path, count: int = 20, seed: int = 1) -> list:
-    """``count`` noisy ellipsoids written as STL in ``folder`` and read back as a mesh population's
-    grains (hulls reduced to 24 vertices), each at circumscribed diameter 1."""
+def write_scan_like_stls(folder: Path, count: int = 20, seed: int = 1) -> list[Path]:
+    """``count`` noisy tessellated ellipsoids (642 vertices, axes 1 : 0.55-0.9 : 0.35-0.6, 3 %
+    radial noise) written as STL files ``grain-KK.stl`` in ``folder``; returns their paths."""
     rng = np.random.default_rng(seed)
     paths = []
     for k in range(count):
@@ -66,6 +66,13 @@ def scan_like_shapes(folder: Path, count: int = 20, seed: int = 1) -> list:
         noise = 1.0 + 0.03 * rng.standard_normal((len(mesh.vertices), 1))
         paths.append(folder / f"grain-{k:02d}.stl")
         trimesh.Trimesh(mesh.vertices * axes * noise, mesh.faces).export(paths[-1])
+    return paths
+
+
+def scan_like_shapes(folder: Path, count: int = 20, seed: int = 1) -> list:
+    """The :func:`write_scan_like_stls` of ``folder`` read back as a mesh population's grains
+    (hulls reduced to 24 vertices), each at circumscribed diameter 1."""
+    paths = write_scan_like_stls(folder, count, seed)
     return [g.shape.scaled(1.0 / g.shape.size) for g in population_grains(paths, 24)]
 
 
