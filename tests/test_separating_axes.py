@@ -13,7 +13,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from granpack.contact.detect import _Tables
-from granpack.contact.narrowphase import _KEEP_BAND, _general_tables, poly_poly
+from granpack.contact.narrowphase import _KEEP_BAND, _general_tables, _scratch, poly_poly
 from granpack.contact.separating_axes import SatResult, _sat, world_geometry
 from granpack.rotations import quat_to_matrix, random_quaternions
 from granpack.shapes import ConvexPolyhedron, ShapeTable
@@ -120,16 +120,13 @@ def pairs():
 
 
 def kernel_inputs(table, tables, kind):
-    """The tuples and scratch arrays that ``narrow_phase`` hands to ``_sat`` and ``poly_poly``."""
-    m = tables.max_points
-    scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
-           np.empty(4, np.int64), np.empty((m, 3)), np.empty((m, 3)), np.empty((3, 2 * m)), np.empty(2 * m))
+    """The bundles and scratch arrays that ``narrow_phase`` hands to ``_sat`` and ``poly_poly``."""
+    scr = _scratch(tables.max_points)
     tab = tables.tab(kind)
-    gauss = _general_tables(tab, tables.axis_extent, tables.edge_arc, table.n_kinds)
-    inradius = gauss[5]
+    gauss = _general_tables(tab)
+    inradius = gauss.inradius
     assert np.allclose(inradius, [s.face_offsets.min() for s in table.shapes])
-    symmetric = (tables.half_start, tables.half, table.axis_start, tables.axis_support)
-    return scr, tab, gauss, symmetric, inradius
+    return scr, tab, gauss, tables.symmetric, inradius
 
 
 def test_edge_faces_are_the_two_faces_of_each_edge():
@@ -145,9 +142,9 @@ def test_edge_faces_are_the_two_faces_of_each_edge():
 
 def test_minkowski_edge_pairs_give_the_exhaustive_separation_and_manifold(pairs):
     shapes, table, tables, kind, quat, position, geo = pairs
-    ax = geo[6]
+    ax = geo.axes
     scr, tab, gauss, symmetric, inradius = kernel_inputs(table, tables, kind)
-    X, pts, gp = scr[8], np.empty((tables.max_points, 3)), np.empty(tables.max_points)
+    X, pts, gp = scr.vertex_block, np.empty((tables.max_points, 3)), np.empty(tables.max_points)
     Y = np.empty_like(X)
     margin = _KEEP_BAND * EPS_F
     n_over = n_sep = n_edge = n_beaten = 0

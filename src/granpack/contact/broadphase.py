@@ -29,6 +29,7 @@ skin since the list was built (displacements by minimum image).
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -62,6 +63,24 @@ def _periodic_window(center, k, n, out):
     return 2 * k + 1
 
 
+#: The cell grid of :func:`candidate_pairs`: cells of ``cell`` in z from the lowest centre up,
+#: ``nx`` by ``ny`` periodic columns in x, y.
+_CellGrid = namedtuple("_CellGrid", [
+    "cell",  # float: side of a cell in z, and the least width of a column in x, y, d
+    "nx",  # int: columns in x
+    "ny",  # int: columns in y
+    "nz",  # int: cells in z
+    "wx",  # float: width of a column in x, d
+    "wy",  # float: width of a column in y, d
+    "cx",  # (N,) int64: column of each grain in x
+    "cy",  # (N,) int64: column of each grain in y
+    "cz",  # (N,) int64: cell of each grain in z
+    "cell_start",  # (nx ny nz + 1,) int64: CSR over cells ((z ny + y) nx + x) of members
+    "members",  # (N,) int64: the grains, cell after cell, each cell's in index order
+    "rmin",  # float: the smallest radius, d
+])
+
+
 @jit
 def candidate_pairs(position, radius, lx, ly, cutoff):
     """All pairs whose bounding spheres are closer than ``cutoff`` (nearest periodic image).
@@ -79,6 +98,17 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
     n = position.shape[0]
     if n == 0:
         return np.zeros(1, np.int64), np.zeros(0, np.int64)
+    grid = _cell_grid(position, radius, lx, ly, cutoff)
+    lo, hi, m = _close_pairs(position, radius, lx, ly, cutoff, grid)
+    return _pair_rows(lo, hi, m, n)
+
+
+@jit
+def _cell_grid(position, radius, lx, ly, cutoff):
+    """The :class:`_CellGrid` of ``N >= 1`` grains (centres ``position``, radii ``radius``, d) for
+    the cutoff ``cutoff`` (d) in a box of periods ``lx``, ``ly`` (d): cells of side ``2 R_min +
+    cutoff``, at least a quarter of ``2 R_max + cutoff`` (module docstring)."""
+    n = position.shape[0]
     rmin = radius.min()
     rmax = radius.max()
     cell = max(2.0 * rmin + cutoff, 0.25 * (2.0 * rmax + cutoff))
@@ -105,7 +135,20 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
         c = (cz[p] * ny + cy[p]) * nx + cx[p]
         members[fill[c]] = p
         fill[c] += 1
+    return _CellGrid(cell, nx, ny, nz, wx, wy, cx, cy, cz, cell_start, members, rmin)
 
+
+@jit
+def _close_pairs(position, radius, lx, ly, cutoff, grid):
+    """The pairs closer than ``cutoff`` (d, bounding spheres, nearest image), each found once,
+    from the cells of the :class:`_CellGrid` ``grid`` (module docstring: larger grain first, half
+    shell for equal grains).
+
+    Returns ``(lo, hi, m)``: the ``m`` pairs ``(lo[k], hi[k])``, ``lo < hi``, in the order found.
+    """
+    n = position.shape[0]
+    nx, ny, nz, wx, wy, cell = grid.nx, grid.ny, grid.nz, grid.wx, grid.wy, grid.cell
+    cx, cy, cz, cell_start, members, rmin = grid.cx, grid.cy, grid.cz, grid.cell_start, grid.members, grid.rmin
     # image index from a product: it can differ from floor(dx / lx + 0.5) only for dx within
     # round-off of +-lx / 2, a pair farther apart than the cutoff either way
     ilx = 1.0 / lx
@@ -174,6 +217,13 @@ def candidate_pairs(position, radius, lx, ly, cutoff):
                             lo[m] = min(i, j)
                             hi[m] = max(i, j)
                             m += 1
+    return lo, hi, m
+
+
+@jit
+def _pair_rows(lo, hi, m, n):
+    """The pairs ``(lo[k], hi[k])``, ``k < m``, of ``n`` grains as CSR over the first:
+    ``(pair_start, pair_j)``, each row sorted."""
     pair_start = np.zeros(n + 1, np.int64)
     for k in range(m):
         pair_start[lo[k] + 1] += 1

@@ -37,7 +37,8 @@ import numpy as np
 
 from granpack.contact.broadphase import VerletList
 from granpack.contact.contacts import ContactSet
-from granpack.contact.narrowphase import narrow_phase, world_geometry
+from granpack.contact.narrowphase import CandidatePairs, KindTables, PreviousNormals, narrow_phase, world_geometry
+from granpack.contact.separating_axes import SymmetricTables
 from granpack.shapes import ShapeTable
 from granpack.state import ParticleState
 
@@ -132,13 +133,17 @@ class _Tables:
         self.axis_support = _axis_support(shapes)
         self.axis_extent = _axis_extent(shapes)
         self.edge_arc = _edge_arcs(shapes)
+        self.symmetric = SymmetricTables(self.half_start, self.half, shapes.axis_start, self.axis_support)
         self.d_min = 2.0 * float(shapes.radius.min())
         self.d_max = 2.0 * float(shapes.radius.max())
 
-    def tab(self, kind: np.ndarray) -> tuple:
+    def tab(self, kind: np.ndarray) -> KindTables:
+        """The narrow phase's :class:`~granpack.contact.narrowphase.KindTables` for particles of
+        these kinds (``(N,)`` int64)."""
         s = self.shapes
-        return (s.vertex_start, s.face_start, s.face_offsets, s.face_vertex_start, s.face_vertices, s.edge_start,
-                s.edges, self.edge_dir, s.edge_faces, kind)
+        return KindTables(kind, s.is_sphere, s.radius, s.face_start, s.face_offsets, s.face_vertex_start,
+                          s.face_vertices, s.edge_start, s.edges, self.edge_dir, s.edge_faces, self.axis_extent,
+                          self.edge_arc)
 
 
 class Detector:
@@ -218,12 +223,10 @@ class Detector:
                              shapes.face_start, shapes.face_normals, shapes.axis_start, shapes.face_axes,
                              shapes.direction_start, shapes.edge_directions, self.threads)
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
-        prev_i, prev_j, prev_n = _previous_arrays(previous, state.n)
-        args = (state.position, state.kind, shapes.is_sphere, shapes.radius, geo, tables.tab(state.kind),
-                tables.half_start, tables.half, shapes.axis_start, tables.axis_support, tables.axis_extent,
-                tables.edge_arc, self.verlet.pair_start,
-                self.verlet.pair_j, self._pair_axis, box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
-                tables.max_points, prev_i, prev_j, prev_n)
+        pairs = CandidatePairs(self.verlet.pair_start, self.verlet.pair_j, self._pair_axis)
+        args = (state.position, geo, tables.tab(state.kind), tables.symmetric, pairs,
+                _previous_normals(previous, state.n), box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
+                tables.max_points)
         bounds = _row_ranges(self.verlet.pair_start, self.threads)
         if len(bounds) == 2:
             parts = [narrow_phase(*args, 0, state.n)]
@@ -273,10 +276,10 @@ def _reach(reach: np.ndarray | None, n: int, alert: float) -> np.ndarray:
     return reach
 
 
-def _previous_arrays(previous: ContactSet | None, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _previous_normals(previous: ContactSet | None, n: int) -> PreviousNormals:
     """Previous pairs (``i < j``) sorted by ``(i, j)`` with their normals, for the merge walk."""
     if previous is None or previous.n_manifolds == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
+        return PreviousNormals(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
     i = np.asarray(previous.body_i, dtype=np.int64)
     j = np.asarray(previous.body_j, dtype=np.int64)
     keep = (j > i) & (j < n)
@@ -285,7 +288,7 @@ def _previous_arrays(previous: ContactSet | None, n: int) -> tuple[np.ndarray, n
     if len(key) > 1 and np.any(np.diff(key) < 0):
         order = np.argsort(key, kind="stable")
         i, j, nrm = i[order], j[order], nrm[order]
-    return np.ascontiguousarray(i), np.ascontiguousarray(j), np.ascontiguousarray(nrm)
+    return PreviousNormals(np.ascontiguousarray(i), np.ascontiguousarray(j), np.ascontiguousarray(nrm))
 
 
 def detect(state: ParticleState, alert: float, previous: ContactSet | None = None) -> ContactSet:

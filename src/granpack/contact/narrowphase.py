@@ -53,11 +53,12 @@ closer than ``1e-3 eps_f`` are merged.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
 from granpack._numba import jit
-from granpack.contact._gjk import gjk_distance
+from granpack.contact._gjk import GjkScratch, gjk_distance
 from granpack.contact.contacts import manifold_type_nb
 from granpack.contact.manifold import (
     _clamp_gaps,
@@ -67,9 +68,9 @@ from granpack.contact.manifold import (
     _gjk_manifold,
     _merge_points,
 )
-from granpack.contact.separating_axes import _sat, world_geometry
+from granpack.contact.separating_axes import GeneralTables, _sat, world_geometry
 
-__all__ = ["narrow_phase", "world_geometry"]
+__all__ = ["CandidatePairs", "KindTables", "PreviousNormals", "Scratch", "narrow_phase", "world_geometry"]
 
 _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE = 0, 1, 2
 #: |cos| between the previous normal and an axis above which the axis counts as the previous one
@@ -80,47 +81,171 @@ _HINT_COS = 0.999
 _KEEP_BAND = 5.0
 
 
+#: The shape table's rows that the narrow phase reads (per kind, ``K`` kinds), and each
+#: particle's kind; built by :meth:`granpack.contact.detect._Tables.tab`.
+KindTables = namedtuple("KindTables", [
+    "kind",  # (N,) int64: each particle's kind
+    "is_sphere",  # (K,) bool: the kind is a sphere
+    "radius",  # (K,) float64: circumscribed radius of each kind (a sphere's radius), d
+    "face_start",  # (K+1,) int64: CSR over kinds of the face rows
+    "face_offsets",  # (NF,) float64: distance of each face's plane from its kind's centre, d
+    "face_vertex_start",  # (NF+1,) int64: CSR over face rows of face_vertices
+    "face_vertices",  # (NFV,) int64: local vertex indices of each face, counter-clockwise seen from outside
+    "edge_start",  # (K+1,) int64: CSR over kinds of the edge rows
+    "edges",  # (NE, 2) int64: local indices of the two vertices of each edge
+    "edge_direction",  # (NE,) int64: local index of each edge's direction among its kind's edge directions
+    "edge_faces",  # (NE, 2) int64: local indices of the two faces of each edge
+    "axis_extent",  # (NA, 2) float64: least and largest a . v over a kind's vertices v along its face axis a, d
+    "edge_arc",  # (NE, 2) float64: cosine between the normals of an edge's two faces, secant of half their angle
+])
+
+#: The work arrays of one narrow-phase call (one thread), from :func:`_scratch`; ``M`` is the
+#: ``max_points`` of :func:`narrow_phase`.
+Scratch = namedtuple("Scratch", [
+    "gjk",  # GjkScratch of gjk_distance
+    "band_rows",  # (4,) int64: vertex rows of two parallel edges, two of A then two of B (_gjk_manifold)
+    "polygon",  # (M, 3) float64: the incident face as it is clipped, A-centred frame, d (_clip_face)
+    "clipped",  # (M, 3) float64: the polygon after one more side plane, d (_clip_face)
+    "vertex_block",  # (3, 2M) float64: a pair's vertices, coordinate-major, A's then B's shifted, d (X of _sat)
+    "half_block",  # (3, 2M) float64: one vertex of each antipodal pair of two symmetric bodies, d (Y of _sat)
+    "heights",  # (2M,) float64: heights of the vertex block along an edge-edge axis, d (_edge_contact)
+])
+
+#: The candidate pairs of the broad phase, as CSR over the first body ``i``.
+CandidatePairs = namedtuple("CandidatePairs", [
+    "start",  # (N+1,) int64: CSR offsets of each body's pairs
+    "partner",  # (C,) int64: the other body j > i of each pair, each row sorted
+    "axis",  # (C,) int64: code of the axis that separated a pair of polyhedra at the previous call, -1 none (updated)
+])
+
+#: The previous step's manifolds between two bodies, for the temporal axis hysteresis of
+#: :func:`poly_poly`.
+PreviousNormals = namedtuple("PreviousNormals", [
+    "body_i",  # (Q,) int64: first body of each pair, sorted by (i, j)
+    "body_j",  # (Q,) int64: second body, j > i
+    "normal",  # (Q, 3) float64: unit normal of the manifold, from j to i
+])
+
+#: The manifolds written by :func:`narrow_phase`, one row per manifold and one per point; the
+#: arrays of a :class:`~granpack.contact.contacts.ContactSet`.
+_Manifolds = namedtuple("_Manifolds", [
+    "body_i",  # (cap,) int64: first body
+    "body_j",  # (cap,) int64: second body, -1 the wall
+    "shift",  # (cap, 3) float64: periodic image shift of body j, d
+    "normal",  # (cap, 3) float64: unit normal from j to i
+    "ctype",  # (cap,) int64: contact type 1/2/3
+    "point_start",  # (cap + 1,) int64: CSR over manifolds of the points
+    "point",  # (max_points cap, 3) float64: world contact points, d
+    "gap",  # (max_points cap,) float64: gap of each point, d (< 0 overlap)
+])
+
+
 @jit(inline="always")
 def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pts, gp):
     """Manifold between polyhedra ``a`` (antagonist image, at the origin) and ``b`` (at ``o``, d).
 
     ``sat`` is the pair's :class:`~granpack.contact.separating_axes.SatResult`, one that does not
     separate the pair (the caller runs the test, so that the half of the pairs it rejects cost no
-    call here), and its vertex block must still be in the scratch ``X``. ``(hx, hy, hz)`` is the
-    pair's normal at the previous step (zero if none): the separating axis closest to it is tried
-    first when it is within ``eps_f`` (d) of the best separation. ``alert`` in d.
+    call here), and its vertex block must still be in ``scr.vertex_block``. ``(hx, hy, hz)`` is
+    the pair's normal at the previous step (zero if none): the separating axis closest to it is
+    tried first when it is within ``eps_f`` (d) of the best separation. ``alert`` in d; ``geo``,
+    ``tab``, ``scr``: the :class:`~granpack.contact.separating_axes.WorldGeometry`,
+    :class:`KindTables` and :class:`Scratch`.
 
     Returns ``(count, nx, ny, nz)``: number of points written to ``pts`` (A-centred frame) and
     ``gp``, and the normal from A to B; count 0 means no contact within ``alert``.
     """
-    pv, pf, pa, pd, rv, fn, ax, dr = geo
-    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, edge_faces, kind = tab
-    _, _, _, _, _, _, buf, buf2, X, h = scr
-    a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
-    sfa, kfa, gfa, sfb, kfb, gfb = sat.sfa, sat.kfa, sat.gfa, sat.sfb, sat.kfb, sat.gfb
-    se, ex, ey, ez = sat.se, sat.ex, sat.ey, sat.ez
-    sface = max(sfa, sfb)
-    sigma = max(sface, se)
+    sface = max(sat.sfa, sat.sfb)
+    sigma = max(sface, sat.se)
     tol_x = 1e-10 * (1.0 + abs(sigma))
-    ka, kb = kind[a], kind[b]
-    # candidate order: the better face axis, the other one, the edge axis; the edge axis first
-    # only if it beats both face axes by more than eps_f (hysteresis); a candidate whose axis is
-    # the previous step's normal (hx, hy, hz) goes first (temporal hysteresis)
+    o0, o1, o2, band_a, band_b, band_e = _candidate_order(sat, geo.axes, hx, hy, hz, eps_f, sigma)
+    gjk_done = False
+    st, dist, px, py, pz, qx, qy, qz = 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    for c in range(3):
+        which = o0 if c == 0 else (o1 if c == 1 else o2)
+        if which == _AXIS_FACE_A:
+            sk, band = sat.sfa, band_a
+        elif which == _AXIS_FACE_B:
+            sk, band = sat.sfb, band_b
+        else:
+            sk, band = sat.se, band_e
+        if sk < sigma - band or sk == -math.inf:
+            continue
+        if which == _AXIS_FACE_A or which == _AXIS_FACE_B:
+            cnt, gmin, nx, ny, nz = _face_axis_clip(which == _AXIS_FACE_A, a, b, ox, oy, oz, sat, geo, tab, alert,
+                                                    scr, pts, gp)
+            if cnt == 0:
+                continue
+            if sigma <= 0.0 and sk < sigma:
+                # interpenetration, this face axis preferred to the best one by the hysteresis:
+                # along it the bodies overlap by up to eps_f more than their penetration depth
+                # -sigma (a vertex below the face's plane but beside the face), so no point is
+                # given a gap below sigma and the smallest gap is the exact depth
+                gmin = _clamp_gaps(gp, cnt, sigma)
+                sk = sigma
+            if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
+                # the smallest gap is the axis separation, or, separated, the best separation of
+                # every axis (a lower bound of the distance that a pair of surface points meets)
+                return cnt, nx, ny, nz
+            if sigma <= 0.0 and cnt < scr.polygon.shape[0]:
+                # interpenetration whose deepest vertex lies outside the reference face: add it
+                _deepest_point(geo, a, b, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B, pts[cnt:], gp[cnt:])
+                return cnt + 1, nx, ny, nz
+            if sigma > 0.0 and cnt < pts.shape[0]:
+                # separated, but the closest points lie outside the overlap of the two faces (e.g.
+                # nearly parallel faces, a corner of the incident face hanging over the reference
+                # face's edge): keep the face manifold if it is within eps_f of the exact distance,
+                # and add the exact closest-point pair so that the smallest gap is the distance
+                if not gjk_done:
+                    a0, a1 = geo.vertex_start[a], geo.vertex_start[a + 1]
+                    b0, b1 = geo.vertex_start[b], geo.vertex_start[b + 1]
+                    st, dist, px, py, pz, qx, qy, qz = gjk_distance(geo.vertices, a0, a1, geo.vertices, b0, b1, ox,
+                                                                    oy, oz, alert, scr.gjk)
+                    gjk_done = True
+                if st == 0 and dist <= alert and gmin - dist <= eps_f:
+                    if gmin - dist <= tol_x:
+                        return cnt, nx, ny, nz
+                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz)
+                    gp[cnt] = dist
+                    return cnt + 1, nx, ny, nz
+        else:
+            if _edge_contact(geo, tab, a, b, ox, oy, oz, sat.ex, sat.ey, sat.ez, sat.se, scr, pts, gp) == 1:
+                if sigma <= 0.0:
+                    _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
+                return 1, sat.ex, sat.ey, sat.ez
+    return _fallback_manifold(a, b, ox, oy, oz, sat, geo, alert, eps_f, sigma, scr, pts, gp)
+
+
+@jit(inline="always")
+def _candidate_order(sat, axes, hx, hy, hz, eps_f, sigma):
+    """The order in which :func:`poly_poly` tries the three axes of ``sat`` (best separation
+    ``sigma``, d), and the band below ``sigma`` (d) within which each is a candidate.
+
+    Candidate order: the better face axis, the other one, the edge axis; the edge axis first only
+    if it beats both face axes by more than ``eps_f`` (hysteresis); a candidate whose axis is the
+    previous step's normal ``(hx, hy, hz)`` goes first (temporal hysteresis). An axis is a
+    candidate within ``eps_f`` of the best separation, or within ``_KEEP_BAND eps_f`` if it is the
+    previous normal: one band would let an axis at its edge flicker in and out from step to step
+    (the manifold's normal and type flipping at every step, its force with them), and a narrow
+    loop between the two bands pumps a sliding grain (module docstring).
+
+    Returns ``(o0, o1, o2, band_a, band_b, band_e)``: the axis kinds (``_AXIS_FACE_A``,
+    ``_AXIS_FACE_B``, ``_AXIS_EDGE``) in order, and the bands of A's face axis, B's and the edge
+    axis, d; ``axes``: the world face axes of the pair's
+    :class:`~granpack.contact.separating_axes.WorldGeometry`.
+    """
+    sfa, kfa, sfb, kfb, se = sat.sfa, sat.kfa, sat.sfb, sat.kfb, sat.se
     first_face = _AXIS_FACE_A if sfa >= sfb else _AXIS_FACE_B
     second_face = _AXIS_FACE_B if sfa >= sfb else _AXIS_FACE_A
-    if se > sface + eps_f:
+    if se > max(sfa, sfb) + eps_f:
         o0, o1, o2 = _AXIS_EDGE, first_face, second_face
     else:
         o0, o1, o2 = first_face, second_face, _AXIS_EDGE
-    # an axis is a candidate within eps_f of the best separation, or within _KEEP_BAND eps_f if it
-    # is the previous normal: one band would let an axis at its edge flicker in and out from step
-    # to step (the manifold's normal and type flipping at every step, its force with them), and a
-    # narrow loop between the two bands pumps a sliding grain (module docstring)
     band_a = band_b = band_e = eps_f
     if hx != 0.0 or hy != 0.0 or hz != 0.0:
-        ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2])
-        cb = abs(hx * ax[kfb, 0] + hy * ax[kfb, 1] + hz * ax[kfb, 2])
-        ce = abs(hx * ex + hy * ey + hz * ez)
+        ca = abs(hx * axes[kfa, 0] + hy * axes[kfa, 1] + hz * axes[kfa, 2])
+        cb = abs(hx * axes[kfb, 0] + hy * axes[kfb, 1] + hz * axes[kfb, 2])
+        ce = abs(hx * sat.ex + hy * sat.ey + hz * sat.ez)
         hint = max(ca, cb, ce)
         if hint > _HINT_COS:
             band_a = _KEEP_BAND * eps_f if ca == hint else eps_f
@@ -137,105 +262,71 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
             elif ca > _HINT_COS or cb > _HINT_COS:
                 # the previous edge-edge normal is also (nearly) a face axis: the faces have come
                 # into contact, and a one-point edge-edge manifold would leave their corners free
-                o0, o1, o2 = (_AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE) if ca >= cb else (_AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE)
+                if ca >= cb:
+                    o0, o1, o2 = _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE
+                else:
+                    o0, o1, o2 = _AXIS_FACE_B, _AXIS_FACE_A, _AXIS_EDGE
             else:
                 o0, o1, o2 = _AXIS_EDGE, first_face, second_face
-    W, ia, ib, lam, tmp, _, _, _, _, _ = scr
-    gjk_done = False
-    st, dist, px, py, pz, qx, qy, qz = 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    for c in range(3):
-        which = o0 if c == 0 else (o1 if c == 1 else o2)
-        if which == _AXIS_FACE_A:
-            sk, band = sfa, band_a
-        elif which == _AXIS_FACE_B:
-            sk, band = sfb, band_b
-        else:
-            sk, band = se, band_e
-        if sk < sigma - band or sk == -math.inf:
-            continue
-        if which == _AXIS_FACE_A or which == _AXIS_FACE_B:
-            if which == _AXIS_FACE_A:
-                g = gfa
-                nx, ny, nz = g * ax[kfa, 0], g * ax[kfa, 1], g * ax[kfa, 2]
-                cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], fn, rv, b0, ox, oy, oz, pf[b],
-                                       pf[b + 1], fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert,
-                                       buf, buf2, pts, gp)
-            else:
-                g = gfb
-                nx, ny, nz = g * ax[kfb, 0], g * ax[kfb, 1], g * ax[kfb, 2]
-                # reference face on B, outward normal -n
-                cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], fn, rv, a0, 0.0, 0.0, 0.0, pf[a],
-                                       pf[a + 1], fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert,
-                                       buf, buf2, pts, gp)
-            if cnt == 0:
-                continue
-            if sigma <= 0.0 and sk < sigma:
-                # interpenetration, this face axis preferred to the best one by the hysteresis:
-                # along it the bodies overlap by up to eps_f more than their penetration depth
-                # -sigma (a vertex below the face's plane but beside the face), so no point is
-                # given a gap below sigma and the smallest gap is the exact depth
-                gmin = _clamp_gaps(gp, cnt, sigma)
-                sk = sigma
-            if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
-                # the smallest gap is the axis separation, or, separated, the best separation of
-                # every axis (a lower bound of the distance that a pair of surface points meets)
-                return cnt, nx, ny, nz
-            if sigma <= 0.0 and cnt < buf.shape[0]:
-                # interpenetration whose deepest vertex lies outside the reference face: add it
-                _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B,
-                               pts[cnt:], gp[cnt:])
-                return cnt + 1, nx, ny, nz
-            if sigma > 0.0 and cnt < pts.shape[0]:
-                # separated, but the closest points lie outside the overlap of the two faces (e.g.
-                # nearly parallel faces, a corner of the incident face hanging over the reference
-                # face's edge): keep the face manifold if it is within eps_f of the exact distance,
-                # and add the exact closest-point pair so that the smallest gap is the distance
-                if not gjk_done:
-                    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert,
-                                                                    W, ia, ib, lam, tmp)
-                    gjk_done = True
-                if st == 0 and dist <= alert and gmin - dist <= eps_f:
-                    if gmin - dist <= tol_x:
-                        return cnt, nx, ny, nz
-                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = 0.5 * (px + qx), 0.5 * (py + qy), 0.5 * (pz + qz)
-                    gp[cnt] = dist
-                    return cnt + 1, nx, ny, nz
-        else:
-            if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
-                             edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
-                if sigma <= 0.0:
-                    _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
-                return 1, ex, ey, ez
+    return o0, o1, o2, band_a, band_b, band_e
+
+
+@jit(inline="always")
+def _face_axis_clip(face_of_a, a, b, ox, oy, oz, sat, geo, tab, alert, scr, pts, gp):
+    """The face manifold of the best face axis of A (``face_of_a``) or of B in ``sat``: the
+    incident face of the other body clipped against the reference face (:func:`_clip_face`), A
+    at the origin and B at ``o`` (d); ``alert`` in d.
+
+    Returns ``(count, gmin, nx, ny, nz)``: the points written to ``pts``, ``gp``, the smallest
+    gap of the clipped polygon (d) and the normal from A to B.
+    """
+    if face_of_a:
+        g = sat.gfa
+        nx, ny, nz = g * geo.axes[sat.kfa, 0], g * geo.axes[sat.kfa, 1], g * geo.axes[sat.kfa, 2]
+        cnt, gmin = _clip_face(geo, tab, a, b, 0.0, 0.0, 0.0, ox, oy, oz, nx, ny, nz, alert, scr, pts, gp)
+    else:
+        g = sat.gfb
+        nx, ny, nz = g * geo.axes[sat.kfb, 0], g * geo.axes[sat.kfb, 1], g * geo.axes[sat.kfb, 2]
+        # reference face on B, outward normal -n
+        cnt, gmin = _clip_face(geo, tab, b, a, ox, oy, oz, 0.0, 0.0, 0.0, -nx, -ny, -nz, alert, scr, pts, gp)
+    return cnt, gmin, nx, ny, nz
+
+
+@jit(inline="always")
+def _fallback_manifold(a, b, ox, oy, oz, sat, geo, alert, eps_f, sigma, scr, pts, gp):
+    """The manifold of :func:`poly_poly` when no axis of ``sat`` gave an exact one: the exact
+    closest points of a separated pair (GJK), else the deepest support point along the best axis
+    (interpenetrating or touching), gap ``sigma`` (d). Returns ``(count, nx, ny, nz)``."""
     if sigma > 0.0:
-        cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
+        cnt, nx, ny, nz = _gjk_manifold(geo, a, b, ox, oy, oz, alert, eps_f, scr, pts, gp)
         if cnt >= 0:
             return cnt, nx, ny, nz
     # interpenetration (or touching) without an exact manifold: deepest support point, best axis
-    if se >= sface:
-        nx, ny, nz = ex, ey, ez
+    if sat.se >= max(sat.sfa, sat.sfb):
+        nx, ny, nz = sat.ex, sat.ey, sat.ez
         from_a = False
-    elif sfa >= sfb:
-        nx, ny, nz = gfa * ax[kfa, 0], gfa * ax[kfa, 1], gfa * ax[kfa, 2]
+    elif sat.sfa >= sat.sfb:
+        g, k = sat.gfa, sat.kfa
+        nx, ny, nz = g * geo.axes[k, 0], g * geo.axes[k, 1], g * geo.axes[k, 2]
         from_a = False
     else:
-        nx, ny, nz = gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2]
+        g, k = sat.gfb, sat.kfb
+        nx, ny, nz = g * geo.axes[k, 0], g * geo.axes[k, 1], g * geo.axes[k, 2]
         from_a = True
-    _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
+    _deepest_point(geo, a, b, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
     return 1, nx, ny, nz
 
 
 @jit
 def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
-    """Sphere A (radius ``ra``, at the origin) against polyhedron ``b`` (at ``o``), lengths in d.
+    """Sphere A (radius ``ra``, at the origin) against polyhedron ``b`` (at ``o``), lengths in d;
+    ``one``: a ``(1, 3)`` zero row, the sphere's centre as a one-point set.
 
     Returns ``(count, nx, ny, nz)`` as :func:`poly_poly` (one point at most: the midpoint of the
     closest points; centre inside B: the face of least depth gives the normal and the gap).
     """
-    pv, pf, pa, pd, rv, fn, ax, dr = geo
-    vertex_start, face_start, face_offsets, fvs, fverts, edge_start, edges, edge_dir, edge_faces, kind = tab
-    W, ia, ib, lam, tmp, idx, _, _, _, _ = scr
-    b0, b1 = pv[b], pv[b + 1]
-    st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, rv, b0, b1, ox, oy, oz, alert + ra, W, ia, ib, lam, tmp)
+    b0, b1 = geo.vertex_start[b], geo.vertex_start[b + 1]
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, geo.vertices, b0, b1, ox, oy, oz, alert + ra, scr.gjk)
     if st == 1:
         return 0, 0.0, 0.0, 0.0
     if st == 0:
@@ -249,11 +340,13 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
         gp[0] = g
         return 1, nx, ny, nz
     # centre inside B: face of least depth; B leaves along -n_f
-    f0 = face_start[kind[b]]
+    fn = geo.normals
+    f0 = tab.face_start[tab.kind[b]]
     best = math.inf
-    fb = pf[b]
-    for f in range(pf[b], pf[b + 1]):
-        depth = face_offsets[f0 + f - pf[b]] + fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz
+    fb0, fb1 = geo.face_start[b], geo.face_start[b + 1]
+    fb = fb0
+    for f in range(fb0, fb1):
+        depth = tab.face_offsets[f0 + f - fb0] + fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz
         if depth < best:
             best, fb = depth, f
     nx, ny, nz = -fn[fb, 0], -fn[fb, 1], -fn[fb, 2]
@@ -284,9 +377,9 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
     Each point lies midway between its vertex and the wall, gap the vertex height. Returns the
     count; ``pts`` must have at least as many rows as the polyhedron has vertices.
     """
-    pv, pf, pa, pd, rv, fn, ax, dr = geo
+    rv = geo.vertices
     cnt = 0
-    for k in range(pv[i], pv[i + 1]):
+    for k in range(geo.vertex_start[i], geo.vertex_start[i + 1]):
         z = zc + rv[k, 2]
         if z < alert:
             pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = rv[k, 0], rv[k, 1], rv[k, 2] - 0.5 * z
@@ -295,28 +388,109 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
     return cnt
 
 
+@jit(inline="always")
+def _wall_points(i, zi, ri, sphere, geo, alert, pts, gp):
+    """Points of body ``i`` (centre height ``zi``, circumscribed radius ``ri``, d; a sphere if
+    ``sphere``) on the wall z = 0 with gaps up to ``alert`` (d), relative to its centre; returns
+    their count (a sphere: its lowest point's midpoint with the wall)."""
+    if sphere:
+        g = zi - ri
+        if g < alert:
+            pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
+            gp[0] = g
+            return 1
+        return 0
+    return _poly_wall(i, zi, geo, alert, pts, gp)
+
+
+@jit(inline="always")
+def _sphere_pair(i, j, ox, oy, oz, ri, rj, sphere_i, sphere_j, geo, tab, alert, scr, one, pts, gp):
+    """Manifold of a pair with at least one sphere: candidate ``i`` (radius ``ri``) at ``o`` from
+    antagonist ``j`` (``rj``), d, up to the gap ``alert`` (d). Two spheres: one point midway
+    between their surfaces on the centre line (normal ``e_z`` for coincident centres); else
+    :func:`_sphere_poly` or :func:`_poly_sphere`. Returns ``(count, nx, ny, nz)``."""
+    if sphere_i and sphere_j:
+        d = math.sqrt(ox * ox + oy * oy + oz * oz)
+        g = d - ri - rj
+        if g > alert:
+            return 0, 0.0, 0.0, 0.0
+        if d > 0.0:
+            nx, ny, nz = ox / d, oy / d, oz / d
+        else:
+            nx, ny, nz = 0.0, 0.0, 1.0
+        c = rj + 0.5 * g
+        pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
+        gp[0] = g
+        return 1, nx, ny, nz
+    if sphere_j:
+        return _sphere_poly(rj, i, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+    return _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
+
+
+@jit(inline="always")
+def _previous_normal(previous, pp, i, j):
+    """The normal of pair ``(i, j)`` at the previous step, zero if it had none, walking the sorted
+    :class:`PreviousNormals` from row ``pp`` (pairs are visited in ``(i, j)`` order). Returns
+    ``(pp, hx, hy, hz)``, ``pp`` the walk's new row."""
+    nprev = len(previous.body_i)
+    while pp < nprev and (previous.body_i[pp] < i or (previous.body_i[pp] == i and previous.body_j[pp] < j)):
+        pp += 1
+    if pp < nprev and previous.body_i[pp] == i and previous.body_j[pp] == j:
+        return pp, previous.normal[pp, 0], previous.normal[pp, 1], previous.normal[pp, 2]
+    return pp, 0.0, 0.0, 0.0
+
+
+@jit(inline="always")
+def _append_manifold(out, m, npt, i, j, sx, sy, nx, ny, nz, cx, cy, cz, pts, gp, cnt, eps_pt, eps_f):
+    """Write manifold ``m`` of bodies ``i``, ``j`` (shift ``(sx, sy, 0)``, normal ``n``) to the
+    :class:`_Manifolds` ``out``, its ``cnt`` points ``pts`` relative to ``c`` (d) from point row
+    ``npt`` on, after merging points closer than ``eps_pt`` (d); its type from the rank of the
+    points with tolerance ``eps_f`` (d). Returns ``(m, npt)`` past what was written."""
+    cnt = _merge_points(pts, gp, cnt, eps_pt)
+    out.body_i[m], out.body_j[m] = i, j
+    out.shift[m, 0], out.shift[m, 1], out.shift[m, 2] = sx, sy, 0.0
+    out.normal[m, 0], out.normal[m, 1], out.normal[m, 2] = nx, ny, nz
+    out.ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
+    for k in range(cnt):
+        out.point[npt, 0], out.point[npt, 1], out.point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
+        out.gap[npt] = gp[k]
+        npt += 1
+    m += 1
+    out.point_start[m] = npt
+    return m, npt
+
+
 @jit
-def _general_tables(tab, axis_extent, edge_arc, n_kinds):
-    """The ``gauss`` tables and scratch of :func:`~granpack.contact.separating_axes._sat` for
-    polyhedra that are not both centrally symmetric: ``(edge_start, edge_faces, edge_dir,
-    edge_arc, axis_extent, inradius, W, Z, sel, edges, face_start, face_offsets)``, with ``inradius[k]`` the radius of the largest
-    ball about the centre inside kind ``k`` (its smallest face offset, d; 0 for a sphere), which
-    prunes the axes of every pair."""
-    face_start, face_offsets, edge_start = tab[1], tab[2], tab[5]
+def _scratch(max_points):
+    """The :class:`Scratch` of one narrow-phase call, for polyhedra of at most ``max_points``
+    vertices and faces of at most ``(max_points - 1) / 2`` vertices."""
+    gjk = GjkScratch(np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4))
+    return Scratch(gjk, np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)),
+                   np.empty((3, 2 * max_points)), np.empty((3, 2 * max_points)), np.empty(2 * max_points))
+
+
+@jit
+def _general_tables(tab):
+    """The :class:`~granpack.contact.separating_axes.GeneralTables` of the kinds of ``tab`` (a
+    :class:`KindTables`), with their scratch, for the separating-axis test of polyhedra that are
+    not both centrally symmetric; ``inradius[k]`` is the radius of the largest ball about the
+    centre inside kind ``k`` (its smallest face offset, d; 0 for a sphere), which prunes the axes
+    of every pair."""
+    face_start, face_offsets, edge_start = tab.face_start, tab.face_offsets, tab.edge_start
+    n_kinds = len(tab.radius)
     inradius = np.zeros(n_kinds)
     for k in range(n_kinds):
         if face_start[k + 1] > face_start[k]:
             inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
     max_edges = max(np.diff(edge_start).max(), 1)
     max_faces = max(np.diff(face_start).max(), 1)
-    return (edge_start, tab[8], tab[7], edge_arc, axis_extent, inradius, np.empty((2, max_faces)),
-            np.empty((4, max_edges)), np.empty(max_edges, np.int64), tab[6], face_start, face_offsets)
+    return GeneralTables(edge_start, tab.edge_faces, tab.edge_direction, tab.edge_arc, tab.axis_extent, inradius,
+                         np.empty((2, max_faces)), np.empty((4, max_edges)), np.empty(max_edges, np.int64), tab.edges,
+                         face_start, face_offsets)
 
 
 @jit
-def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, axis_start, axis_support,
-                 axis_extent, edge_arc, pair_start, pair_j, pair_axis, lx, ly, alert, reach, eps_f, max_points, prev_i,
-                 prev_j, prev_n, i0, i1):
+def narrow_phase(position, geo, tab, symmetric, pairs, previous, lx, ly, alert, reach, eps_f, max_points, i0, i1):
     """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
 
     Rows are independent (a pair belongs to its row ``i``, the previous normals are looked up by
@@ -326,25 +500,15 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
 
     Args:
         position: ``(N, 3)`` centres (x, y wrapped into the cell), d.
-        kind: ``(N,)`` kind index; is_sphere, radius: ``(K,)`` per kind (radius in d).
-        geo: :func:`world_geometry` output; tab: ``(vertex_start, face_start, face_offsets,
-            face_vertex_start, face_vertices, edge_start, edges, edge_dir, edge_faces, kind)``
-            (``edge_dir``: each edge's local index in its kind's edge directions).
-        half_start, half: ``(K+1,)`` CSR over kinds of the local indices of one vertex of each
-            antipodal pair for centrally symmetric polyhedra (empty block otherwise): the faster
-            separating-axis test of :func:`~granpack.contact.separating_axes._sat`.
-        axis_start, axis_support: ``(K+1,)``, ``(NA,)`` the shape table's face-axis rows and the
-            support ``max_v |a . v|`` of each kind along its own face axes ``a``, d.
-        axis_extent: ``(NA, 2)`` the least and the largest ``a . v`` over each kind's vertices
-            ``v`` along its own face axes ``a``, d (the face-axis bound of
-            :func:`~granpack.contact.separating_axes._sat` for bodies that are not both
-            centrally symmetric).
-        edge_arc: ``(NE, 2)`` per edge, the cosine between the normals of its two faces and the
-            secant of half their angle (:func:`~granpack.contact.detect._edge_arcs`).
-        pair_start, pair_j: candidate pairs as CSR over ``i`` (``(N+1,)``, ``(C,)``), ``j > i``.
-        pair_axis: ``(C,)`` per candidate pair of polyhedra, the code of the axis that separated
-            it at the previous call (-1: none), read and updated (see
-            :func:`~granpack.contact.separating_axes._sat`).
+        geo: the :class:`~granpack.contact.separating_axes.WorldGeometry` of :func:`world_geometry`.
+        tab: the :class:`KindTables` of the shape table and the particles' kinds.
+        symmetric: the :class:`~granpack.contact.separating_axes.SymmetricTables` of the shape
+            table: the faster separating-axis test of two centrally symmetric polyhedra
+            (:func:`~granpack.contact.separating_axes._sat`).
+        pairs: the :class:`CandidatePairs` (``j > i``); their ``axis`` codes are read and updated
+            in rows ``i0:i1`` (see :func:`~granpack.contact.separating_axes._sat`).
+        previous: the previous step's :class:`PreviousNormals`, for the temporal axis hysteresis
+            of :func:`poly_poly`.
         lx, ly: periods, d.
         alert: alert distance, d: the largest gap reported.
         reach: ``(N,)`` per body, d: pair ``(i, j)`` reports gaps up to ``min(alert, reach_i + reach_j)``,
@@ -353,9 +517,7 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         eps_f: feature band / rank tolerance, d.
         max_points: scratch rows, at least the largest vertex count and twice the largest face
             size plus one.
-        prev_i, prev_j, prev_n: previous step's pairs (``i < j``, sorted by ``(i, j)``) and
-            normals ``(Q, 3)``, for the temporal axis hysteresis of :func:`poly_poly`.
-        i0, i1: the rows computed (``0, N`` for all); ``pair_axis`` is written in these rows only.
+        i0, i1: the rows computed (``0, N`` for all).
 
     Returns:
         ``(body_i, body_j, shift, normal, ctype, point_start, point, gap, n_tested)``: the
@@ -363,62 +525,34 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
         wall, ``j = -1``, first), and the number of pairs whose bounding spheres overlap within
         ``alert`` (narrow-phase tests).
     """
-    cap = pair_start[i1] - pair_start[i0] + (i1 - i0)
-    body_i = np.empty(cap, np.int64)
-    body_j = np.empty(cap, np.int64)
-    shift = np.empty((cap, 3))
-    normal = np.empty((cap, 3))
-    ctype = np.empty(cap, np.int64)
-    pstart = np.zeros(cap + 1, np.int64)
-    point = np.empty((max_points * cap, 3))
-    gap = np.empty(max_points * cap)
-    scr = (np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
-           np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)), np.empty((3, 2 * max_points)),
-           np.empty(2 * max_points))
+    cap = pairs.start[i1] - pairs.start[i0] + (i1 - i0)
+    out = _Manifolds(np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3)), np.empty((cap, 3)),
+                     np.empty(cap, np.int64), np.zeros(cap + 1, np.int64), np.empty((max_points * cap, 3)),
+                     np.empty(max_points * cap))
+    scr = _scratch(max_points)
     one = np.zeros((1, 3))
-    symmetric = (half_start, half, axis_start, axis_support)
-    X = scr[8]
-    Y = np.empty((3, 2 * max_points))
     pts = np.empty((max_points, 3))
     gp = np.empty(max_points)
     eps_pt = 1e-3 * eps_f
-    gauss = _general_tables(tab, axis_extent, edge_arc, len(radius))
-    inradius = gauss[5]
+    gauss = _general_tables(tab)
+    is_sphere, radius, inradius = tab.is_sphere, tab.radius, gauss.inradius
     m = 0
     npt = 0
     tested = 0
-    nprev = len(prev_i)
-    pp = np.searchsorted(prev_i, i0)
+    pp = np.searchsorted(previous.body_i, i0)
     for i in range(i0, i1):
-        ki = kind[i]
+        ki = tab.kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
         aw = min(alert, 2.0 * reach[i])
         if zi - ri < aw:
-            if is_sphere[ki]:
-                cnt = 0
-                g = zi - ri
-                if g < aw:
-                    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
-                    gp[0] = g
-                    cnt = 1
-            else:
-                cnt = _poly_wall(i, zi, geo, aw, pts, gp)
+            cnt = _wall_points(i, zi, ri, is_sphere[ki], geo, aw, pts, gp)
             if cnt > 0:
-                cnt = _merge_points(pts, gp, cnt, eps_pt)
-                body_i[m], body_j[m] = i, -1
-                shift[m, 0], shift[m, 1], shift[m, 2] = 0.0, 0.0, 0.0
-                normal[m, 0], normal[m, 1], normal[m, 2] = 0.0, 0.0, 1.0
-                ctype[m] = manifold_type_nb(pts, cnt, 0.0, 0.0, 1.0, eps_f)
-                for k in range(cnt):
-                    point[npt, 0], point[npt, 1], point[npt, 2] = xi + pts[k, 0], yi + pts[k, 1], zi + pts[k, 2]
-                    gap[npt] = gp[k]
-                    npt += 1
-                m += 1
-                pstart[m] = npt
-        for q in range(pair_start[i], pair_start[i + 1]):
-            j = pair_j[q]
-            kj = kind[j]
+                m, npt = _append_manifold(out, m, npt, i, -1, 0.0, 0.0, 0.0, 0.0, 1.0, xi, yi, zi, pts, gp, cnt,
+                                          eps_pt, eps_f)
+        for q in range(pairs.start[i], pairs.start[i + 1]):
+            j = pairs.partner[q]
+            kj = tab.kind[j]
             dx = xi - position[j, 0]
             dy = yi - position[j, 1]
             sx = lx * math.floor(dx / lx + 0.5)
@@ -429,49 +563,20 @@ def narrow_phase(position, kind, is_sphere, radius, geo, tab, half_start, half, 
             if ox * ox + oy * oy + oz * oz >= rr * rr:
                 continue
             tested += 1
-            if is_sphere[ki] and is_sphere[kj]:
-                d = math.sqrt(ox * ox + oy * oy + oz * oz)
-                g = d - ri - radius[kj]
-                if g > a:
-                    continue
-                if d > 0.0:
-                    nx, ny, nz = ox / d, oy / d, oz / d
-                else:
-                    nx, ny, nz = 0.0, 0.0, 1.0
-                c = radius[kj] + 0.5 * g
-                pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
-                gp[0] = g
-                cnt = 1
-            elif is_sphere[kj]:
-                cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
-            elif is_sphere[ki]:
-                cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+            if is_sphere[ki] or is_sphere[kj]:
+                cnt, nx, ny, nz = _sphere_pair(i, j, ox, oy, oz, ri, radius[kj], is_sphere[ki], is_sphere[kj], geo,
+                                               tab, a, scr, one, pts, gp)
             else:
                 sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
-                           _KEEP_BAND * eps_f, X, Y, pair_axis[q])
-                pair_axis[q] = sat.axis
+                           _KEEP_BAND * eps_f, scr.vertex_block, scr.half_block, pairs.axis[q])
+                pairs.axis[q] = sat.axis
                 if sat.far:
                     continue
-                while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
-                    pp += 1
-                if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
-                    hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
-                else:
-                    hx, hy, hz = 0.0, 0.0, 0.0
+                pp, hx, hy, hz = _previous_normal(previous, pp, i, j)
                 cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat, geo, tab, a, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
-            cnt = _merge_points(pts, gp, cnt, eps_pt)
-            body_i[m], body_j[m] = i, j
-            shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
-            normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
-            ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
-            cx, cy, cz = position[j, 0] + sx, position[j, 1] + sy, position[j, 2]
-            for k in range(cnt):
-                point[npt, 0], point[npt, 1], point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
-                gap[npt] = gp[k]
-                npt += 1
-            m += 1
-            pstart[m] = npt
-    return (body_i[:m].copy(), body_j[:m].copy(), shift[:m].copy(), normal[:m].copy(), ctype[:m].copy(),
-            pstart[:m + 1].copy(), point[:npt].copy(), gap[:npt].copy(), tested)
+            m, npt = _append_manifold(out, m, npt, i, j, sx, sy, nx, ny, nz, position[j, 0] + sx, position[j, 1] + sy,
+                                      position[j, 2], pts, gp, cnt, eps_pt, eps_f)
+    return (out.body_i[:m].copy(), out.body_j[:m].copy(), out.shift[:m].copy(), out.normal[:m].copy(),
+            out.ctype[:m].copy(), out.point_start[:m + 1].copy(), out.point[:npt].copy(), out.gap[:npt].copy(), tested)

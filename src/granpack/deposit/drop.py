@@ -174,6 +174,10 @@ def drop_one(
     """Drop-and-roll of one sphere released at ``(x0, y0, z0)``; writes its resting centre
     (unwrapped) to ``p`` (``lo``, ``hi``: scratch (3,)).
 
+    The supports (at most 4) are kept in ``sid``, ``skx``, ``sky`` (the id of a sphere or plane
+    and its periodic image), ``sact`` (active in the current motion) and ``skind``, ``sc``,
+    ``sv`` (their geometry, :func:`~granpack.deposit.geometry.supports`).
+
     Returns 1 if the sphere came to rest, 0 if the attempt must be retried (too many motions,
     degenerate geometry) and -1 if the candidate buffers overflowed.
     """
@@ -199,17 +203,7 @@ def drop_one(
         mask, res = active_set(nrm, ns, skip)
         if res < STABLE_TOL:
             return 1
-        na = 0
-        i0 = -1
-        i1 = -1
-        for s in range(ns):
-            sact[s] = (mask >> s) & 1 == 1
-            if sact[s]:
-                if na == 0:
-                    i0 = s
-                else:
-                    i1 = s
-                na += 1
+        na, i0, i1 = _mark_active(mask, ns, sact)
         if na == 0:
             t = _fall_first_contact(
                 radius, p, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
@@ -220,65 +214,11 @@ def drop_one(
             skip = -1
         else:
             if na == 1:
-                # roll on sphere i0 in the vertical plane through its centre, down to its equator
-                if skind[i0] != 0:
-                    return 0
-                for a in range(3):
-                    cc[a] = sc[i0, a]
-                rc = sv[i0]
-                nrm_len = 0.0
-                for a in range(3):
-                    f1[a] = p[a] - cc[a]
-                    nrm_len += f1[a] * f1[a]
-                nrm_len = math.sqrt(nrm_len)
-                for a in range(3):
-                    f1[a] /= nrm_len
-                    p[a] = cc[a] + rc * f1[a]
-                down_perp(f1, f2)
-                tmax = math.asin(min(f1[2], 1.0))
-                release = i0
+                status, rc, tmax, release = _roll_on_sphere(p, i0, skind, sc, sv, cc, f1, f2)
             else:
-                # roll on the circle of supports i0 (a sphere) and i1
-                if skind[i0] != 0:
-                    i0, i1 = i1, i0
-                if skind[i0] != 0:
-                    return 0
-                if not circle(sc[i0], sv[i0], skind[i1], sc[i1], sv[i1], circ):
-                    return 0
-                for a in range(3):
-                    cc[a] = circ[a]
-                u = circ[3:6]
-                rc = circ[6]
-                wu = (p[0] - cc[0]) * u[0] + (p[1] - cc[1]) * u[1] + (p[2] - cc[2]) * u[2]
-                for a in range(3):
-                    f1[a] = p[a] - cc[a] - wu * u[a]
-                wl = math.sqrt(f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
-                if wl <= 0.0:
-                    return 0
-                for a in range(3):
-                    f1[a] /= wl
-                    p[a] = cc[a] + rc * f1[a]
-                cross(u, f1, f2)
-                if f2[2] > 0.0:
-                    for a in range(3):
-                        f2[a] = -f2[a]
-                if f2[2] > -1e-14:
-                    # lowest point of the circle (or a horizontal circle): no tangential gravity
-                    return 1
-                # height of rhat: b(t) = f1_z cos t + f2_z sin t = s cos(t - psi), falling to -s
-                s = math.hypot(f1[2], f2[2])
-                psi = math.atan2(f2[2], f1[2])
-                tmax = math.pi + psi
-                release = -1
-                # lambda_1 = (u_z B_2 - A_2 b) / det and lambda_2 = (A_1 b - u_z B_1) / det
-                t = _release_angle(circ[9], circ[10], u[2], s, f1[2], psi)
-                if 0.0 <= t < tmax:
-                    tmax = t
-                    release = i0
-                t = _release_angle(circ[7], circ[8], u[2], s, f1[2], psi)
-                if 0.0 <= t < tmax:
-                    tmax = t
-                    release = i1
+                status, rc, tmax, release = _roll_on_circle(p, i0, i1, skind, sc, sv, circ, cc, f1, f2)
+            if status >= 0:
+                return status
             t = _arc_first_contact(
                 radius, cc, rc, f1, f2, tmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize,
                 periodic, rmax, sid, skx, sky, sact, ns, out_i, out_k, pl, lo, hi, hit,
@@ -286,35 +226,150 @@ def drop_one(
             if t < 0.0:
                 return -1
             arc_point(cc, rc, f1, f2, t, p)
-            # keep the active supports (compacted), then the new contact
-            k = 0
-            for s in range(ns):
-                if sact[s]:
-                    if s == release:
-                        release = k
-                    sid[k] = sid[s]
-                    skx[k] = skx[s]
-                    sky[k] = sky[s]
-                    skind[k] = skind[s]
-                    sv[k] = sv[s]
-                    for a in range(3):
-                        sc[k, a] = sc[s, a]
-                    k += 1
-            ns = k
+            ns, release = _keep_active(ns, release, sact, sid, skx, sky, skind, sc, sv)
             if hit[0] != NO_HIT:
                 skip = -1
             else:
                 skip = release
                 continue
         # append the contact found by the motion
-        j = hit[0]
-        sid[ns] = j
-        skx[ns] = hit[1]
-        sky[ns] = hit[2]
-        if j >= 0:
-            set_sphere(ns, pos[j, 0] + hit[1] * lsize, pos[j, 1] + hit[2] * lsize, pos[j, 2], radius + rad[j], skind, sc, sv)
-        else:
-            plane(j, radius, lsize, pl)
-            set_plane(ns, pl, skind, sc, sv)
-        ns += 1
+        ns = _add_support(ns, hit, radius, pos, rad, lsize, pl, sid, skx, sky, skind, sc, sv)
     return 0
+
+
+@jit(inline="always")
+def _mark_active(mask, ns, sact):
+    """Set ``sact[s]`` for the supports ``s < ns`` in the bit mask ``mask`` of the active set;
+    returns ``(count, first, last)``, the active supports' number and first and last index (-1
+    if none)."""
+    na = 0
+    i0 = -1
+    i1 = -1
+    for s in range(ns):
+        sact[s] = (mask >> s) & 1 == 1
+        if sact[s]:
+            if na == 0:
+                i0 = s
+            else:
+                i1 = s
+            na += 1
+    return na, i0, i1
+
+
+@jit(inline="always")
+def _roll_on_sphere(p, i0, skind, sc, sv, cc, f1, f2):
+    """The roll on support ``i0`` alone (a sphere of centre ``sc[i0]``, contact radius ``sv[i0]``,
+    d) in the vertical plane through its centre, down to its equator: puts ``p`` on that sphere
+    and writes the arc ``cc + rc (cos t f1 + sin t f2)`` to ``cc``, ``f1``, ``f2``.
+
+    Returns ``(status, rc, tmax, release)``: status 0 (retry: the support is a plane) or -1 (roll
+    for ``0 <= t <= tmax`` rad, then release support ``release``).
+    """
+    if skind[i0] != 0:
+        return 0, 0.0, 0.0, -1
+    for a in range(3):
+        cc[a] = sc[i0, a]
+    rc = sv[i0]
+    nrm_len = 0.0
+    for a in range(3):
+        f1[a] = p[a] - cc[a]
+        nrm_len += f1[a] * f1[a]
+    nrm_len = math.sqrt(nrm_len)
+    for a in range(3):
+        f1[a] /= nrm_len
+        p[a] = cc[a] + rc * f1[a]
+    down_perp(f1, f2)
+    tmax = math.asin(min(f1[2], 1.0))
+    return -1, rc, tmax, i0
+
+
+@jit(inline="always")
+def _roll_on_circle(p, i0, i1, skind, sc, sv, circ, cc, f1, f2):
+    """The roll on the circle of supports ``i0`` and ``i1`` (one of them a sphere), down to its
+    lowest point or to where one multiplier, linear in the height along the circle, crosses zero:
+    puts ``p`` on the circle and writes the arc ``cc + rc (cos t f1 + sin t f2)`` to ``cc``,
+    ``f1``, ``f2`` (``circ``: scratch (11,), :func:`~granpack.deposit.geometry.circle`).
+
+    Returns ``(status, rc, tmax, release)``: status 0 (retry: degenerate geometry), 1 (at rest:
+    the lowest point of the circle, or a horizontal circle) or -1 (roll for ``0 <= t <= tmax``
+    rad, then release support ``release``, -1 none).
+    """
+    if skind[i0] != 0:
+        i0, i1 = i1, i0
+    if skind[i0] != 0:
+        return 0, 0.0, 0.0, -1
+    if not circle(sc[i0], sv[i0], skind[i1], sc[i1], sv[i1], circ):
+        return 0, 0.0, 0.0, -1
+    for a in range(3):
+        cc[a] = circ[a]
+    u = circ[3:6]
+    rc = circ[6]
+    wu = (p[0] - cc[0]) * u[0] + (p[1] - cc[1]) * u[1] + (p[2] - cc[2]) * u[2]
+    for a in range(3):
+        f1[a] = p[a] - cc[a] - wu * u[a]
+    wl = math.sqrt(f1[0] * f1[0] + f1[1] * f1[1] + f1[2] * f1[2])
+    if wl <= 0.0:
+        return 0, 0.0, 0.0, -1
+    for a in range(3):
+        f1[a] /= wl
+        p[a] = cc[a] + rc * f1[a]
+    cross(u, f1, f2)
+    if f2[2] > 0.0:
+        for a in range(3):
+            f2[a] = -f2[a]
+    if f2[2] > -1e-14:
+        # lowest point of the circle (or a horizontal circle): no tangential gravity
+        return 1, 0.0, 0.0, -1
+    # height of rhat: b(t) = f1_z cos t + f2_z sin t = s cos(t - psi), falling to -s
+    s = math.hypot(f1[2], f2[2])
+    psi = math.atan2(f2[2], f1[2])
+    tmax = math.pi + psi
+    release = -1
+    # lambda_1 = (u_z B_2 - A_2 b) / det and lambda_2 = (A_1 b - u_z B_1) / det
+    t = _release_angle(circ[9], circ[10], u[2], s, f1[2], psi)
+    if 0.0 <= t < tmax:
+        tmax = t
+        release = i0
+    t = _release_angle(circ[7], circ[8], u[2], s, f1[2], psi)
+    if 0.0 <= t < tmax:
+        tmax = t
+        release = i1
+    return -1, rc, tmax, release
+
+
+@jit(inline="always")
+def _keep_active(ns, release, sact, sid, skx, sky, skind, sc, sv):
+    """Compact the support arrays to their active supports (``sact``), in order; returns the new
+    count and the new index of support ``release`` (unchanged if it is not active)."""
+    k = 0
+    for s in range(ns):
+        if sact[s]:
+            if s == release:
+                release = k
+            sid[k] = sid[s]
+            skx[k] = skx[s]
+            sky[k] = sky[s]
+            skind[k] = skind[s]
+            sv[k] = sv[s]
+            for a in range(3):
+                sc[k, a] = sc[s, a]
+            k += 1
+    return k, release
+
+
+@jit(inline="always")
+def _add_support(ns, hit, radius, pos, rad, lsize, pl, sid, skx, sky, skind, sc, sv):
+    """Append the contact ``hit = (id, kx, ky)`` (a sphere image of the deposit, or a plane
+    ``id < 0``) to the ``ns`` supports of the sphere of radius ``radius`` (d); returns ``ns + 1``
+    (``pl``: scratch (4,))."""
+    j = hit[0]
+    sid[ns] = j
+    skx[ns] = hit[1]
+    sky[ns] = hit[2]
+    if j >= 0:
+        set_sphere(ns, pos[j, 0] + hit[1] * lsize, pos[j, 1] + hit[2] * lsize, pos[j, 2], radius + rad[j], skind, sc,
+                   sv)
+    else:
+        plane(j, radius, lsize, pl)
+        set_plane(ns, pl, skind, sc, sv)
+    return ns + 1
