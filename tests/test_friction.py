@@ -6,8 +6,9 @@ slope (+x) a grain feels ``g sin θ``, against the wall ``g cos θ``. The exact 
 
 - a block (any grain resting on a face) sticks when ``tan θ < μ``: the friction force
   ``m g sin θ`` lies inside the cone ``μ m g cos θ``, and nothing moves;
-- it slides when ``tan θ > μ`` at ``a = g (sin θ - μ cos θ)``, without turning (the tipping angle
-  of the grains used is above ``atan μ``);
+- it slides when ``tan θ > μ`` at ``a = g (sin θ - μ cos θ)``, without turning: the wall's force
+  then leans from the normal by ``atan μ`` (``atan 0.5`` at most here), and its line of action
+  through the centre stays inside the face of every grain used, so none tips;
 - a solid sphere (``I = 2/5 m R²``) set sliding with ``v0`` and spin ``ω0`` on a level floor slips
   at ``dv/dt = -μ g``, ``dω/dt = 5 μ g / (2 R)`` until ``v = ω R``; the angular momentum about the
   contact point, ``m R v + I ω``, is conserved (friction acts at that point, gravity and the
@@ -139,7 +140,7 @@ def test_block_on_a_slope_below_the_friction_angle_sticks(name, nncg):
 @pytest.mark.parametrize("name", list(SHAPES))
 def test_block_on_a_slope_above_the_friction_angle_slides_at_the_coulomb_acceleration(name, mu):
     """tan θ = 0.5 > μ: ``v = g (sin θ - μ cos θ) t`` and ``x = x0 + a t² / 2`` at every step to
-    1e-9 relative, no motion across or off the slope, no turn (the grains tip at tan θ >= 1.4)."""
+    1e-9 relative, no motion across or off the slope, no turn."""
     shape = SHAPES[name]
     state = on_floor(shape)
     x0 = state.position[0].copy()
