@@ -1,10 +1,10 @@
 """One Moreau–Jean step: predict, detect, assemble, solve (NLGS), correct positions, update.
 
 The scheme (docs: Method > NSCD, formulas in :mod:`granpack.nscd.rigid`): free velocities with
-gravity (``StepParameters.gravity``, ``(0, 0, -1)``) and the explicit gyroscopic term; contacts detected on the predicted
-configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried by the contacts' shifts);
-the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS (:mod:`granpack.nscd.nlgs`)
-from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
+gravity (``StepParameters.gravity``, ``(0, 0, -1)``) and the explicit gyroscopic term; contacts
+detected on the predicted configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried
+by the contacts' shifts); the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS
+(:mod:`granpack.nscd.nlgs`) from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
 ``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into the cell.
 
 Position correction (docs: Method > Overlap recovery and position correction). The velocity law

@@ -675,8 +675,8 @@ def solve(problem: ContactProblem, options: NLGSOptions) -> tuple[np.ndarray, So
     if problem.frictional:
         r = np.ascontiguousarray(r0, dtype=np.float64).copy()
         v = problem.velocity(r)
-        it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v, tol,
-                                     max_it, every, bool(options.nncg))
+        it, err, ok = _solve_coulomb(problem.body, problem.normal_data, problem.friction_data, problem.offset, r, v,
+                                     tol, max_it, every, bool(options.nncg))
         impulse = r
     else:
         impulse = np.zeros((problem.n_points, 3))

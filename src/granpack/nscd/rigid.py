@@ -105,8 +105,8 @@ def predict_kernel(position, quaternion, velocity, omega, inertia, h, theta, gra
     """
     n = position.shape[0]
     for c in prange(chunks):
-        _predict_bodies(n * c // chunks, n * (c + 1) // chunks, position, quaternion, velocity, omega, inertia, h, theta,
-                        gravity, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free)
+        _predict_bodies(n * c // chunks, n * (c + 1) // chunks, position, quaternion, velocity, omega, inertia, h,
+                        theta, gravity, x_tt, q_tt, rot_tt, inv_inertia_w, v_start, v_free)
     for k in range(6):
         inv_inertia_w[n, k] = 0.0
         v_start[n, k] = 0.0
