@@ -3,6 +3,7 @@
 Usage::
 
     python benchmarks/contact_types.py RUN_DIR_OR_GSD [...]
+    python benchmarks/contact_types.py --split-doubles RUN_DIR_OR_GSD [...]
 
 For each ``final.gsd`` (or any packing GSD) prints, over the bulk grains, N / Ns / Nd / Nt / Nc on
 the backbone and with the rattlers, and the rattler fraction, for the types from the
@@ -15,6 +16,15 @@ three count as three, so the cap changes no type); then the distribution of the 
 largest one of their manifold, which is what ``point_tol`` cuts, and that of the manifold forces
 relative to their mean, which is what ``force_tol`` cuts (the NLGS converges to a relative
 tolerance of 1e-4, so a manifold force below about 1e-4 of the mean is within its noise).
+
+``--split-doubles`` prints instead, over the bulk backbone, the figures with every double contact
+whose force rests on two points of very unequal force counted as two simple contacts: a two-point
+manifold (exactly two force-bearing points) whose smaller point force is below ``ratio`` times the
+larger one counts as two simple contacts of one constraint each (N + 1, Ns + 2, Nd - 1 per such
+contact, Nc and the rattlers unchanged), for several ratios; and the two-point doubles per grain by
+the ratio of their point forces. It tests whether a code that reports each point of an edge-face
+contact as a contact of its own, when one of them carries little, would count granpack's piles
+with more simple and fewer double contacts.
 """
 
 from __future__ import annotations
@@ -65,6 +75,86 @@ def point_count_figures(packing, z_range: tuple[float, float]) -> tuple[dict, di
             float(removed.sum() / n) if n else float("nan"))
 
 
+SPLIT_RATIOS = (1e-3, 1e-2, 0.05, 0.08, 0.1, 0.2, 0.5, 1.0)
+
+
+def two_point_ratio(packing, point_tol: float = 1e-3) -> np.ndarray:
+    """``(M,)`` smaller over larger normal force of the two force-bearing points of every manifold
+    that has exactly two (nan for the others)."""
+    c = packing.contacts
+    bearing = force_bearing_points(packing, point_tol)
+    fn = np.where(bearing, point_normal_force(packing), np.nan)
+    counts = np.diff(c.point_start)
+    n_bearing = np.zeros(c.n_manifolds, np.int64)
+    nonempty = counts > 0
+    n_bearing[nonempty] = np.add.reduceat(bearing.astype(np.int64), c.point_start[:-1][nonempty])
+    ratio = np.full(c.n_manifolds, np.nan)
+    two = np.flatnonzero(n_bearing == 2)
+    for m in two:
+        f = fn[c.point_start[m]:c.point_start[m + 1]]
+        f = f[np.isfinite(f)]
+        ratio[m] = f.min() / f.max()
+    return ratio
+
+
+def split_double_figures(packing, z_range: tuple[float, float], ratios=SPLIT_RATIOS, target: float | None = None) -> dict:
+    """Backbone figures of the bulk with the two-point doubles below each force ratio counted as two
+    simple contacts; ``{"base": figures, "split": {ratio: (figures, split per grain)},
+    "two_point_doubles": per grain}``, and with ``target`` (split contacts per grain)
+    ``"target_ratio"``, the least ratio that splits that many."""
+    from granpack.analysis.solid_fraction import analysed_region, in_region
+
+    co = Coordination(z_range).compute(packing)
+    c = packing.contacts
+    n = packing.n_particles
+    analysed = in_region(packing, analysed_region(packing, z_range))
+    backbone = analysed & ~co.rattlers
+    removed = co.rattlers
+    live = force_bearing(packing) & ~removed[c.body_i] & ~((c.body_j >= 0) & removed[np.maximum(c.body_j, 0)])
+    ratio = two_point_ratio(packing, co.point_tol)
+    doubles2 = live & (co.types == 2) & np.isfinite(ratio)
+
+    def per_grain(sel):
+        out = np.bincount(c.body_i[sel], minlength=n).astype(float)
+        pair = sel & (c.body_j >= 0)
+        return out + np.bincount(c.body_j[pair], minlength=n)
+
+    base = _figures(co.per_particle[backbone])
+    out = {"base": base, "two_point_doubles": float(per_grain(doubles2)[backbone].mean()), "split": {}}
+    if target is not None:
+        candidates = np.flatnonzero(doubles2)
+        ends = backbone[c.body_i[candidates]].astype(float) + np.where(c.body_j[candidates] >= 0, backbone[np.maximum(c.body_j[candidates], 0)], False)
+        order = np.argsort(ratio[candidates])
+        reached = np.cumsum(ends[order]) / backbone.sum()
+        k = int(np.searchsorted(reached, target))
+        out["target_ratio"] = float(ratio[candidates][order][min(k, len(order) - 1)])
+        ratios = tuple(sorted(set(ratios) | {np.nextafter(out["target_ratio"], np.inf)}))
+    for r in ratios:
+        s = per_grain(doubles2 & (ratio < r))
+        counts = co.per_particle.copy()
+        counts[:, 0] += 2 * s
+        counts[:, 1] -= s
+        out["split"][r] = (_figures(counts[backbone]), float(s[backbone].mean()))
+    return out
+
+
+def report_split(path: Path, target: float | None = None) -> None:
+    gsd = path / "final.gsd" if path.is_dir() else path
+    packing = read_packing(gsd)
+    z_bot, z_top, valid = bulk_range(packing)
+    res = split_double_figures(packing, (z_bot, z_top), target=target)
+    b = res["base"]
+    print(f"\n{gsd}: bulk z = {z_bot:.2f} .. {z_top:.2f} d{'' if valid else ' (no valid bulk region)'}")
+    print(f"granpack's types: N / Ns / Nd / Nt / Nc = {b['N']:.2f} / {b['Ns']:.2f} / {b['Nd']:.2f} / {b['Nt']:.2f} / "
+          f"{b['Nc']:.2f}; two-point doubles per grain {res['two_point_doubles']:.3f} of Nd {b['Nd']:.3f}")
+    print(f"{'split below ratio':<18} {'split per grain':>15}   N / Ns / Nd / Nt / Nc")
+    for r, (f, s) in res["split"].items():
+        print(f"{r:<18.3g} {s:15.3f}   {f['N']:.2f} / {f['Ns']:.2f} / {f['Nd']:.2f} / {f['Nt']:.2f} / {f['Nc']:.2f}")
+    if "target_ratio" in res:
+        print(f"{target:g} split contacts per grain: the two-point doubles whose weaker point carries up to "
+              f"{res['target_ratio']:.3f} of the stronger")
+
+
 def report(path: Path) -> None:
     gsd = path / "final.gsd" if path.is_dir() else path
     packing = read_packing(gsd)
@@ -110,5 +200,13 @@ def report(path: Path) -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("packings", nargs="+", type=Path, help="run folders (their final.gsd) or packing GSD files")
-    for packing_path in parser.parse_args().packings:
-        report(packing_path)
+    parser.add_argument("--split-doubles", action="store_true",
+                        help="count the two-point doubles of unequal point forces as two simple contacts, at several force ratios")
+    parser.add_argument("--target", type=float, default=None,
+                        help="with --split-doubles: the least force ratio that splits this many contacts per grain")
+    args = parser.parse_args()
+    for packing_path in args.packings:
+        if args.split_doubles:
+            report_split(packing_path, args.target)
+        else:
+            report(packing_path)

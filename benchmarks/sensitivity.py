@@ -169,7 +169,7 @@ STUDY_CELLS = {"flat-elongated": (8.0,), "flat": (6.0, 8.0), "elongated": (8.0, 
 BULK_BED = 5.0
 
 #: the study's solid fractions (its text and tables, as docs/validation.md quotes them): mixture ->
-#: (raw phi, its std, phi_min the virtual-work lower bound); None where the study gives none. Its
+#: (raw phi, its std, phi_min its overlap-corrected figure, phi / (1 + k)^3); None where the study gives none. Its
 #: flat & elongated packing is "slightly above" the one-size isometric 0.676: drawn at 0.676.
 STUDY_PHI = {
     "pinacoids-small-0": (0.676, 0.004, 0.664),
