@@ -11,6 +11,7 @@ Usage::
 
     python benchmarks/gradings.py            # one JSON object per run
     python benchmarks/gradings.py table      # the markdown table
+    python benchmarks/gradings.py compare    # pinacoids against spheres of the same curve; N over all grains
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ def run_row(run_dir: Path) -> dict | None:
         "status": summary["status"], "t": summary["simulated_time"], "cpu_hours": summary["cpu_time"] / 3600,
         "phi": analysis["solid_fraction"]["bulk"], "phi_std": analysis["solid_fraction"]["std"],
         "N": coordination["N"], "Nc": coordination["Nc"], "rattlers": coordination["rattler_fraction"],
+        "N_all": coordination["with_rattlers"]["N"],
         "class_N": classes["coordination"], "class_rattlers": classes["rattler_fraction"],
         "k": analysis["interpenetration"]["expansion_k"], "Q00": analysis["order"]["Q00"],
     }
@@ -66,13 +68,31 @@ def table(runs: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def compare(runs: list[dict]) -> str:
+    """The pinacoids' bulk φ less the spheres' of the same Fuller exponent, and the spheres' N on
+    the backbone and over all bulk grains."""
+    phi = {r["mixture"]: r["phi"] for r in runs}
+    lines = []
+    for r in runs:
+        if r["mixture"].startswith("pinacoids-"):
+            spheres = "spheres-" + r["mixture"].removeprefix("pinacoids-")
+            if spheres in phi:
+                lines.append(f"{r['mixture']}: {r['phi']:.4f} - {phi[spheres]:.4f} = {r['phi'] - phi[spheres]:+.4f}")
+    for r in runs:
+        if r["mixture"].startswith("spheres-"):
+            lines.append(f"{r['mixture']}: N {r['N']:.2f} on the backbone, {r['N_all']:.2f} over all bulk grains")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", nargs="?", choices=["runs", "table"], default="runs")
+    parser.add_argument("what", nargs="?", choices=["runs", "table", "compare"], default="runs")
     args = parser.parse_args(argv)
     found = rows()
     if args.what == "table":
         print(table(found))
+    elif args.what == "compare":
+        print(compare(found))
     else:
         for r in found:
             print(json.dumps(r))

@@ -172,6 +172,33 @@ def mixtures(root: Path) -> str:
     return "\n".join(lines)
 
 
+def sphere_coordination(root: Path) -> str:
+    """The page's sentence on the N of the sphere mixtures: the backbone's above 6, and why."""
+    by_mixture: dict[str, list[dict]] = {}
+    for run in _run_folders(root):
+        if run.parent.name.startswith("spheres"):
+            by_mixture.setdefault(run.parent.name, []).append(json.loads((run / "analysis.json").read_text()))
+    if not by_mixture:
+        return ""
+    rows = {}
+    for name, runs in by_mixture.items():
+        rest = [a for a in runs if a.get("status") == "equilibrium"] or runs
+        rows[name] = (_mean([a["coordination"]["N"] for a in rest]),
+                      _mean([a["coordination"]["with_rattlers"]["N"] for a in rest]),
+                      _mean([a["coordination"]["rattler_fraction"] for a in rest]))
+    top = max(rows, key=lambda m: rows[m][0])
+    backbone, every, rattlers = rows[top]
+    low, high = min(r[1] for r in rows.values()), max(r[1] for r in rows.values())
+    return (f"The spheres' N is that of the backbone, the rattlers removed, and reads above the isostatic 6 "
+            f"(up to {backbone:.2f} for {top}, against {every:.2f} over all its bulk grains, {rattlers:.0%} of them "
+            f"rattlers) by the rattler rule under gravity: the rule counts a sphere with fewer than 4 "
+            f"force-bearing contacts a rattler, what a frictionless sphere needs to be held without gravity, "
+            f"while under gravity a sphere rests on 3, so it removes grains that carry their weight, and their "
+            f"contacts with the backbone. Over all bulk grains N is {low:.2f} to {high:.2f} "
+            f"([Method > Analysis](method/analysis.md#coordination-numbers); the contacts of the removed grains "
+            f"counted on kept piles: [Gradings](gradings.md#the-example-campaign-fuller-curves)).")
+
+
 #: the families of the study in the order the page lists them (others follow, sorted)
 _FAMILIES = ("spheres", "pinacoids", "elongated", "flat", "flat-elongated")
 #: the campaign figures of the page: (file stem, caption)
@@ -331,6 +358,8 @@ still moving has contacts that open and close). A mixture none of whose runs cam
 them over all its runs, marked (cap).
 
 {mixtures(root)}
+
+{sphere_coordination(root)}
 
 ## Per run
 
