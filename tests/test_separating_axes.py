@@ -123,7 +123,7 @@ def kernel_inputs(table, tables, kind):
     """The bundles and scratch arrays that ``narrow_phase`` hands to ``_sat`` and ``poly_poly``."""
     scr = _scratch(tables.max_points)
     tab = tables.tab(kind)
-    gauss = _general_tables(tab)
+    gauss = _general_tables(tab, tables.axis_extent, tables.edge_arc, table.n_kinds)
     inradius = gauss.inradius
     assert np.allclose(inradius, [s.face_offsets.min() for s in table.shapes])
     return scr, tab, gauss, tables.symmetric, inradius

@@ -14,20 +14,11 @@ polytopes is an exact finite termination up to rounding.
 from __future__ import annotations
 
 import math
-from collections import namedtuple
+
 
 from granpack._numba import jit
 
-__all__ = ["GjkScratch", "gjk_distance"]
-
-#: The work arrays of :func:`gjk_distance` (one thread's), reused from call to call.
-GjkScratch = namedtuple("GjkScratch", [
-    "simplex",  # (4, 3) float64: the simplex's points, each a vertex of A minus a vertex of B, d
-    "rows_a",  # (4,) int64: the vertex row of A of each simplex point
-    "rows_b",  # (4,) int64: the vertex row of B of each simplex point
-    "weights",  # (4,) float64: barycentric weights of the simplex's point closest to the origin
-    "work",  # (4,) float64: the weights of one face of a tetrahedral simplex (_tetrahedron)
-])
+__all__ = ["gjk_distance"]
 
 
 @jit
@@ -160,7 +151,7 @@ def _support(rv, v0, v1, ox, oy, oz, dx, dy, dz):
 
 
 @jit
-def gjk_distance(rva, a0, a1, rvb, b0, b1, ox, oy, oz, cutoff, scratch):
+def gjk_distance(rva, a0, a1, rvb, b0, b1, ox, oy, oz, cutoff, W, ia, ib, lam, tmp):
     """Euclidean distance between the convex hulls of two vertex sets.
 
     Set A is ``rva[a0:a1]`` (as given), set B is ``(ox, oy, oz) + rvb[b0:b1]``.
@@ -170,14 +161,13 @@ def gjk_distance(rva, a0, a1, rvb, b0, b1, ox, oy, oz, cutoff, scratch):
         a0, a1, b0, b1: row ranges of the two sets.
         ox, oy, oz: offset added to the rows of B, d.
         cutoff: stop early (returning ``status = 1``) once the distance is proven larger, d.
-        scratch: a :class:`GjkScratch`.
+        W: ``(4, 3)`` scratch; ia, ib: ``(4,)`` int64 scratch; lam, tmp: ``(4,)`` scratch.
 
     Returns:
         ``(status, dist, px, py, pz, qx, qy, qz)``: status 0 = separated (``p`` in A and ``q`` in
         B are the closest points, ``dist = |q - p|``), 1 = farther than ``cutoff`` (other values
         meaningless), 2 = intersecting or touching (``dist = 0``).
     """
-    W, ia, ib, lam, tmp = scratch.simplex, scratch.rows_a, scratch.rows_b, scratch.weights, scratch.work
     vx = rva[a0, 0] - (ox + rvb[b0, 0])
     vy = rva[a0, 1] - (oy + rvb[b0, 1])
     vz = rva[a0, 2] - (oz + rvb[b0, 2])

@@ -37,7 +37,14 @@ import numpy as np
 
 from granpack.contact.broadphase import VerletList
 from granpack.contact.contacts import ContactSet
-from granpack.contact.narrowphase import CandidatePairs, KindTables, PreviousNormals, narrow_phase, world_geometry
+from granpack.contact.narrowphase import (
+    CandidatePairs,
+    KindBounds,
+    KindTables,
+    PreviousNormals,
+    narrow_phase,
+    world_geometry,
+)
 from granpack.contact.separating_axes import SymmetricTables
 from granpack.shapes import ShapeTable
 from granpack.state import ParticleState
@@ -134,6 +141,7 @@ class _Tables:
         self.axis_extent = _axis_extent(shapes)
         self.edge_arc = _edge_arcs(shapes)
         self.symmetric = SymmetricTables(self.half_start, self.half, shapes.axis_start, self.axis_support)
+        self.bounds = KindBounds(shapes.is_sphere, shapes.radius, self.axis_extent, self.edge_arc)
         self.d_min = 2.0 * float(shapes.radius.min())
         self.d_max = 2.0 * float(shapes.radius.max())
 
@@ -141,9 +149,8 @@ class _Tables:
         """The narrow phase's :class:`~granpack.contact.narrowphase.KindTables` for particles of
         these kinds (``(N,)`` int64)."""
         s = self.shapes
-        return KindTables(kind, s.is_sphere, s.radius, s.face_start, s.face_offsets, s.face_vertex_start,
-                          s.face_vertices, s.edge_start, s.edges, self.edge_dir, s.edge_faces, self.axis_extent,
-                          self.edge_arc)
+        return KindTables(s.face_start, s.face_offsets, s.face_vertex_start, s.face_vertices, s.edge_start, s.edges,
+                          self.edge_dir, s.edge_faces, kind)
 
 
 class Detector:
@@ -224,7 +231,7 @@ class Detector:
                              shapes.direction_start, shapes.edge_directions, self.threads)
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         pairs = CandidatePairs(self.verlet.pair_start, self.verlet.pair_j, self._pair_axis)
-        args = (state.position, geo, tables.tab(state.kind), tables.symmetric, pairs,
+        args = (state.position, geo, tables.tab(state.kind), tables.bounds, tables.symmetric, pairs,
                 _previous_normals(previous, state.n), box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
                 tables.max_points)
         bounds = _row_ranges(self.verlet.pair_start, self.threads)

@@ -18,50 +18,43 @@ __all__: list[str] = []
 
 
 @jit(inline="always")
-def _clip_face(geo, tab, ref, inc, rox, roy, roz, iox, ioy, ioz, nx, ny, nz, alert, scr, out, gout):
+def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0,
+               inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
     """Clip the incident face against the reference face with outward normal ``n``.
 
-    The reference body ``ref`` is centred at ``ro``, the incident body ``inc`` at ``io`` (rows of
-    the :class:`~granpack.contact.separating_axes.WorldGeometry` ``geo``; their kinds' faces in
-    the :class:`~granpack.contact.narrowphase.KindTables` ``tab``); the reference face is the one
-    whose normal is closest to ``n``, the incident body's face the one whose normal is most
-    opposed to ``n``. Lengths (offsets ``ro``, ``io``, vertex offsets, ``alert``) in d, ``n`` a
-    unit vector; ``scr.polygon``, ``scr.clipped`` (:class:`~granpack.contact.narrowphase.Scratch`):
-    scratch rows, at least twice the largest face size plus one.
+    The reference body has vertices ``ro + ref_rv[ref_v0:ref_v1]``, world face normals
+    ``ref_fn[ref_f0:ref_f1]`` (global face rows of its kind start at ``face_row_ref``); the
+    reference face is the one whose normal is closest to ``n``. The incident body's face is the
+    one whose normal is most opposed to ``n``. Lengths (offsets ``ro``, ``io``, vertex offsets,
+    ``alert``) in d, ``n`` a unit vector; ``buf``, ``buf2``: scratch rows, at least twice the
+    largest face size plus one.
 
     Returns:
         ``(count, gmin)``: points written to ``out`` (position on the midpoint between the two
         surfaces) and their gaps ``gout`` (``n . p - delta_ref``), keeping gaps ``<= alert``;
         ``gmin`` is the smallest gap over all clipped points (``inf`` if the clip is empty).
     """
-    rv, fn = geo.vertices, geo.normals
-    ref_v0, ref_v1, inc_v0 = geo.vertex_start[ref], geo.vertex_start[ref + 1], geo.vertex_start[inc]
-    ref_f0, ref_f1 = geo.face_start[ref], geo.face_start[ref + 1]
-    inc_f0, inc_f1 = geo.face_start[inc], geo.face_start[inc + 1]
-    face_row_ref, face_row_inc = tab.face_start[tab.kind[ref]], tab.face_start[tab.kind[inc]]
-    fvs, fverts = tab.face_vertex_start, tab.face_vertices
-    buf, buf2 = scr.polygon, scr.clipped
     # reference face: normal closest to n; incident face: normal most opposed to n
     fr = ref_f0
     best = -math.inf
     for f in range(ref_f0, ref_f1):
-        d = fn[f, 0] * nx + fn[f, 1] * ny + fn[f, 2] * nz
+        d = ref_fn[f, 0] * nx + ref_fn[f, 1] * ny + ref_fn[f, 2] * nz
         if d > best:
             best, fr = d, f
     fi = inc_f0
     best = math.inf
     for f in range(inc_f0, inc_f1):
-        d = fn[f, 0] * nx + fn[f, 1] * ny + fn[f, 2] * nz
+        d = inc_fn[f, 0] * nx + inc_fn[f, 1] * ny + inc_fn[f, 2] * nz
         if d < best:
             best, fi = d, f
-    _, delta = _interval(rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
+    _, delta = _interval(ref_rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
     row_i = face_row_inc + fi - inc_f0
     m = 0
     for k in range(fvs[row_i], fvs[row_i + 1]):
         v = inc_v0 + fverts[k]
-        buf[m, 0] = iox + rv[v, 0]
-        buf[m, 1] = ioy + rv[v, 1]
-        buf[m, 2] = ioz + rv[v, 2]
+        buf[m, 0] = iox + rvi[v, 0]
+        buf[m, 1] = ioy + rvi[v, 1]
+        buf[m, 2] = ioz + rvi[v, 2]
         m += 1
     row_r = face_row_ref + fr - ref_f0
     r0, r1 = fvs[row_r], fvs[row_r + 1]
@@ -69,10 +62,10 @@ def _clip_face(geo, tab, ref, inc, rox, roy, roz, iox, ioy, ioz, nx, ny, nz, ale
     for e in range(nr):
         va = ref_v0 + fverts[r0 + e]
         vb = ref_v0 + fverts[r0 + (e + 1) % nr]
-        ax_, ay_, az_ = rox + rv[va, 0], roy + rv[va, 1], roz + rv[va, 2]
-        ex = rox + rv[vb, 0] - ax_
-        ey = roy + rv[vb, 1] - ay_
-        ez = roz + rv[vb, 2] - az_
+        ax_, ay_, az_ = rox + ref_rv[va, 0], roy + ref_rv[va, 1], roz + ref_rv[va, 2]
+        ex = rox + ref_rv[vb, 0] - ax_
+        ey = roy + ref_rv[vb, 1] - ay_
+        ez = roz + ref_rv[vb, 2] - az_
         # side plane normal (outward of the face polygon) and offset
         sx = ey * nz - ez * ny
         sy = ez * nx - ex * nz
@@ -114,7 +107,7 @@ def _clip_face(geo, tab, ref, inc, rox, roy, roz, iox, ioy, ioz, nx, ny, nz, ale
 
 
 @jit(inline="always")
-def _edge_contact(geo, tab, a, b, ox, oy, oz, nx, ny, nz, se, scr, pts, gp):
+def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx, ny, nz, se, X, h, pts, gp):
     """One point from the crossing edges that realise an edge-edge axis ``n`` (from A to B).
 
     An edge realising the separation along ``n = e_A x e_B`` is perpendicular to ``n``, so it
@@ -124,18 +117,14 @@ def _edge_contact(geo, tab, a, b, ox, oy, oz, nx, ny, nz, se, scr, pts, gp):
     axis: every non-parallel pair of edges lying in the two support planes is tried and the first
     whose closest points are interior to both segments is the contact.
 
-    The vertex heights ``n . x`` are computed once into ``scr.heights`` from the vertex block
-    ``scr.vertex_block`` left by :func:`_sat` (A's vertices, then B's shifted by ``o``); ``geo``,
-    ``tab``, ``scr`` as :func:`_clip_face`.
+    The vertex heights ``n . x`` are computed once into ``h`` from the vertex block ``X`` left by
+    :func:`_sat` (A's vertices, then B's shifted by ``o``).
 
     Returns the number of points written (1, at the midpoint of the two closest points, gap
     ``se``, the axis separation, d; or 0 when no such pair exists, e.g. when the closest features
-    are not two crossing edges). Lengths in d.
+    are not two crossing edges). Lengths in d; ``edges`` local vertex pairs, rows ``ea0:ea1`` of
+    A's kind and ``eb0:eb1`` of B's.
     """
-    rv, edges, X, h = geo.vertices, tab.edges, scr.vertex_block, scr.heights
-    a0, a1, b0, b1 = geo.vertex_start[a], geo.vertex_start[a + 1], geo.vertex_start[b], geo.vertex_start[b + 1]
-    ka, kb = tab.kind[a], tab.kind[b]
-    ea0, ea1, eb0, eb1 = tab.edge_start[ka], tab.edge_start[ka + 1], tab.edge_start[kb], tab.edge_start[kb + 1]
     na = a1 - a0
     topa = -math.inf
     botb = math.inf
@@ -239,22 +228,20 @@ def _band_vertices(rv, v0, v1, ox, oy, oz, nx, ny, nz, top, band, idx):
 
 
 @jit
-def _gjk_manifold(geo, a, b, ox, oy, oz, alert, eps_f, scr, pts, gp):
+def _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp):
     """Manifold from the exact closest points (GJK) of A and B.
 
-    A centred (body ``a`` of the :class:`~granpack.contact.separating_axes.WorldGeometry`
-    ``geo``), B (body ``b``) at ``o``; lengths in d; ``scr`` the
-    :class:`~granpack.contact.narrowphase.Scratch`. Two
+    A centred (vertex rows ``a0:a1`` of ``rv``), B at ``o`` (rows ``b0:b1``); lengths in d. Two
     points for parallel edges overlapping by more than ``eps_f``, else one at the midpoint of the
-    closest points, gap the distance.
+    closest points, gap the distance; ``scr``: the :class:`~granpack.contact.narrowphase.Scratch`.
 
     Returns ``(count, nx, ny, nz)``: points written to ``pts``/``gp`` and the unit normal from A
     to B; count 0 if the pair is farther than ``alert``, -1 if GJK finds the bodies touching or
     intersecting.
     """
-    rv, idx = geo.vertices, scr.band_rows
-    a0, a1, b0, b1 = geo.vertex_start[a], geo.vertex_start[a + 1], geo.vertex_start[b], geo.vertex_start[b + 1]
-    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert, scr.gjk)
+    W, ia, ib, lam, tmp = scr.simplex, scr.simplex_a, scr.simplex_b, scr.weights, scr.face_weights
+    idx = scr.band_rows
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert, W, ia, ib, lam, tmp)
     if st == 1 or (st == 0 and dist > alert):
         return 0, 0.0, 0.0, 0.0
     if st == 2:
@@ -307,12 +294,10 @@ def _gjk_manifold(geo, a, b, ox, oy, oz, alert, eps_f, scr, pts, gp):
 
 
 @jit
-def _deepest_point(geo, a, b, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp):
+def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp):
     """Single point, gap ``sigma`` (d), midway between the support vertex of B along -n (or of A
     along n, ``from_a``) and the other body's support plane ``sigma`` away; returns 1. Frame and
     units as :func:`_gjk_manifold`."""
-    rv = geo.vertices
-    a0, a1, b0, b1 = geo.vertex_start[a], geo.vertex_start[a + 1], geo.vertex_start[b], geo.vertex_start[b + 1]
     if from_a:
         best = -math.inf
         k0 = a0

@@ -58,7 +58,7 @@ from collections import namedtuple
 import numpy as np
 
 from granpack._numba import jit
-from granpack.contact._gjk import GjkScratch, gjk_distance
+from granpack.contact._gjk import gjk_distance
 from granpack.contact.contacts import manifold_type_nb
 from granpack.contact.manifold import (
     _clamp_gaps,
@@ -81,12 +81,9 @@ _HINT_COS = 0.999
 _KEEP_BAND = 5.0
 
 
-#: The shape table's rows that the narrow phase reads (per kind, ``K`` kinds), and each
+#: The shape table's rows that the manifolds are built from (per kind, ``K`` kinds), and each
 #: particle's kind; built by :meth:`granpack.contact.detect._Tables.tab`.
 KindTables = namedtuple("KindTables", [
-    "kind",  # (N,) int64: each particle's kind
-    "is_sphere",  # (K,) bool: the kind is a sphere
-    "radius",  # (K,) float64: circumscribed radius of each kind (a sphere's radius), d
     "face_start",  # (K+1,) int64: CSR over kinds of the face rows
     "face_offsets",  # (NF,) float64: distance of each face's plane from its kind's centre, d
     "face_vertex_start",  # (NF+1,) int64: CSR over face rows of face_vertices
@@ -95,6 +92,14 @@ KindTables = namedtuple("KindTables", [
     "edges",  # (NE, 2) int64: local indices of the two vertices of each edge
     "edge_direction",  # (NE,) int64: local index of each edge's direction among its kind's edge directions
     "edge_faces",  # (NE, 2) int64: local indices of the two faces of each edge
+    "kind",  # (N,) int64: each particle's kind
+])
+
+#: Per kind, the bounding sphere of the broad and narrow phases and the bounds of the
+#: separating-axis test of general polyhedra (:func:`_general_tables`).
+KindBounds = namedtuple("KindBounds", [
+    "is_sphere",  # (K,) bool: the kind is a sphere
+    "radius",  # (K,) float64: circumscribed radius of each kind (a sphere's radius), d
     "axis_extent",  # (NA, 2) float64: least and largest a . v over a kind's vertices v along its face axis a, d
     "edge_arc",  # (NE, 2) float64: cosine between the normals of an edge's two faces, secant of half their angle
 ])
@@ -102,12 +107,15 @@ KindTables = namedtuple("KindTables", [
 #: The work arrays of one narrow-phase call (one thread), from :func:`_scratch`; ``M`` is the
 #: ``max_points`` of :func:`narrow_phase`.
 Scratch = namedtuple("Scratch", [
-    "gjk",  # GjkScratch of gjk_distance
+    "simplex",  # (4, 3) float64: GJK's simplex, each point a vertex of A minus a vertex of B, d (gjk_distance)
+    "simplex_a",  # (4,) int64: the vertex row of A of each simplex point
+    "simplex_b",  # (4,) int64: the vertex row of B of each simplex point
+    "weights",  # (4,) float64: barycentric weights of the simplex's point closest to the origin
+    "face_weights",  # (4,) float64: the weights of one face of a tetrahedral simplex
     "band_rows",  # (4,) int64: vertex rows of two parallel edges, two of A then two of B (_gjk_manifold)
     "polygon",  # (M, 3) float64: the incident face as it is clipped, A-centred frame, d (_clip_face)
     "clipped",  # (M, 3) float64: the polygon after one more side plane, d (_clip_face)
     "vertex_block",  # (3, 2M) float64: a pair's vertices, coordinate-major, A's then B's shifted, d (X of _sat)
-    "half_block",  # (3, 2M) float64: one vertex of each antipodal pair of two symmetric bodies, d (Y of _sat)
     "heights",  # (2M,) float64: heights of the vertex block along an edge-edge axis, d (_edge_contact)
 ])
 
@@ -126,8 +134,9 @@ PreviousNormals = namedtuple("PreviousNormals", [
     "normal",  # (Q, 3) float64: unit normal of the manifold, from j to i
 ])
 
-#: The manifolds written by :func:`narrow_phase`, one row per manifold and one per point; the
-#: arrays of a :class:`~granpack.contact.contacts.ContactSet`.
+#: The output arrays of :func:`narrow_phase` (the arrays of a
+#: :class:`~granpack.contact.contacts.ContactSet`), ``cap`` manifolds of at most ``max_points``
+#: points each.
 _Manifolds = namedtuple("_Manifolds", [
     "body_i",  # (cap,) int64: first body
     "body_j",  # (cap,) int64: second body, -1 the wall
@@ -148,32 +157,57 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
     separate the pair (the caller runs the test, so that the half of the pairs it rejects cost no
     call here), and its vertex block must still be in ``scr.vertex_block``. ``(hx, hy, hz)`` is
     the pair's normal at the previous step (zero if none): the separating axis closest to it is
-    tried first when it is within ``eps_f`` (d) of the best separation. ``alert`` in d; ``geo``,
-    ``tab``, ``scr``: the :class:`~granpack.contact.separating_axes.WorldGeometry`,
-    :class:`KindTables` and :class:`Scratch`.
+    tried first when it is within ``eps_f`` (d) of the best separation (:func:`_candidate_order`).
+    ``alert`` in d; ``geo``, ``tab``, ``scr``: the
+    :class:`~granpack.contact.separating_axes.WorldGeometry`, :class:`KindTables` and
+    :class:`Scratch`.
 
     Returns ``(count, nx, ny, nz)``: number of points written to ``pts`` (A-centred frame) and
     ``gp``, and the normal from A to B; count 0 means no contact within ``alert``.
     """
-    sface = max(sat.sfa, sat.sfb)
-    sigma = max(sface, sat.se)
+    pv, pf, rv, fn, ax = geo.vertex_start, geo.face_start, geo.vertices, geo.normals, geo.axes
+    face_start, fvs, fverts = tab.face_start, tab.face_vertex_start, tab.face_vertices
+    edge_start, edges, kind = tab.edge_start, tab.edges, tab.kind
+    W, ia, ib, lam, tmp = scr.simplex, scr.simplex_a, scr.simplex_b, scr.weights, scr.face_weights
+    buf, buf2, X, h = scr.polygon, scr.clipped, scr.vertex_block, scr.heights
+    a0, a1, b0, b1 = pv[a], pv[a + 1], pv[b], pv[b + 1]
+    sfa, kfa, gfa, sfb, kfb, gfb = sat.sfa, sat.kfa, sat.gfa, sat.sfb, sat.kfb, sat.gfb
+    se, ex, ey, ez = sat.se, sat.ex, sat.ey, sat.ez
+    sface = max(sfa, sfb)
+    sigma = max(sface, se)
     tol_x = 1e-10 * (1.0 + abs(sigma))
-    o0, o1, o2, band_a, band_b, band_e = _candidate_order(sat, geo.axes, hx, hy, hz, eps_f, sigma)
+    ka, kb = kind[a], kind[b]
+    hinted = hx != 0.0 or hy != 0.0 or hz != 0.0
+    ca = abs(hx * ax[kfa, 0] + hy * ax[kfa, 1] + hz * ax[kfa, 2]) if hinted else 0.0
+    cb = abs(hx * ax[kfb, 0] + hy * ax[kfb, 1] + hz * ax[kfb, 2]) if hinted else 0.0
+    ce = abs(hx * ex + hy * ey + hz * ez) if hinted else 0.0
+    o0, o1, o2, band_a, band_b, band_e = _candidate_order(sfa, sfb, se, sigma, eps_f, hinted, ca, cb, ce)
     gjk_done = False
     st, dist, px, py, pz, qx, qy, qz = 1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     for c in range(3):
         which = o0 if c == 0 else (o1 if c == 1 else o2)
         if which == _AXIS_FACE_A:
-            sk, band = sat.sfa, band_a
+            sk, band = sfa, band_a
         elif which == _AXIS_FACE_B:
-            sk, band = sat.sfb, band_b
+            sk, band = sfb, band_b
         else:
-            sk, band = sat.se, band_e
+            sk, band = se, band_e
         if sk < sigma - band or sk == -math.inf:
             continue
         if which == _AXIS_FACE_A or which == _AXIS_FACE_B:
-            cnt, gmin, nx, ny, nz = _face_axis_clip(which == _AXIS_FACE_A, a, b, ox, oy, oz, sat, geo, tab, alert,
-                                                    scr, pts, gp)
+            if which == _AXIS_FACE_A:
+                g = gfa
+                nx, ny, nz = g * ax[kfa, 0], g * ax[kfa, 1], g * ax[kfa, 2]
+                cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], fn, rv, b0, ox, oy, oz, pf[b],
+                                       pf[b + 1], fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert,
+                                       buf, buf2, pts, gp)
+            else:
+                g = gfb
+                nx, ny, nz = g * ax[kfb, 0], g * ax[kfb, 1], g * ax[kfb, 2]
+                # reference face on B, outward normal -n
+                cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], fn, rv, a0, 0.0, 0.0, 0.0, pf[a],
+                                       pf[a + 1], fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert,
+                                       buf, buf2, pts, gp)
             if cnt == 0:
                 continue
             if sigma <= 0.0 and sk < sigma:
@@ -187,9 +221,10 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 # the smallest gap is the axis separation, or, separated, the best separation of
                 # every axis (a lower bound of the distance that a pair of surface points meets)
                 return cnt, nx, ny, nz
-            if sigma <= 0.0 and cnt < scr.polygon.shape[0]:
+            if sigma <= 0.0 and cnt < buf.shape[0]:
                 # interpenetration whose deepest vertex lies outside the reference face: add it
-                _deepest_point(geo, a, b, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B, pts[cnt:], gp[cnt:])
+                _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B,
+                               pts[cnt:], gp[cnt:])
                 return cnt + 1, nx, ny, nz
             if sigma > 0.0 and cnt < pts.shape[0]:
                 # separated, but the closest points lie outside the overlap of the two faces (e.g.
@@ -197,10 +232,8 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 # face's edge): keep the face manifold if it is within eps_f of the exact distance,
                 # and add the exact closest-point pair so that the smallest gap is the distance
                 if not gjk_done:
-                    a0, a1 = geo.vertex_start[a], geo.vertex_start[a + 1]
-                    b0, b1 = geo.vertex_start[b], geo.vertex_start[b + 1]
-                    st, dist, px, py, pz, qx, qy, qz = gjk_distance(geo.vertices, a0, a1, geo.vertices, b0, b1, ox,
-                                                                    oy, oz, alert, scr.gjk)
+                    st, dist, px, py, pz, qx, qy, qz = gjk_distance(rv, a0, a1, rv, b0, b1, ox, oy, oz, alert,
+                                                                    W, ia, ib, lam, tmp)
                     gjk_done = True
                 if st == 0 and dist <= alert and gmin - dist <= eps_f:
                     if gmin - dist <= tol_x:
@@ -209,32 +242,47 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                     gp[cnt] = dist
                     return cnt + 1, nx, ny, nz
         else:
-            if _edge_contact(geo, tab, a, b, ox, oy, oz, sat.ex, sat.ey, sat.ez, sat.se, scr, pts, gp) == 1:
+            if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
+                             edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
                 if sigma <= 0.0:
                     _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
-                return 1, sat.ex, sat.ey, sat.ez
-    return _fallback_manifold(a, b, ox, oy, oz, sat, geo, alert, eps_f, sigma, scr, pts, gp)
+                return 1, ex, ey, ez
+    if sigma > 0.0:
+        cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
+        if cnt >= 0:
+            return cnt, nx, ny, nz
+    # interpenetration (or touching) without an exact manifold: deepest support point, best axis
+    if se >= sface:
+        nx, ny, nz = ex, ey, ez
+        from_a = False
+    elif sfa >= sfb:
+        nx, ny, nz = gfa * ax[kfa, 0], gfa * ax[kfa, 1], gfa * ax[kfa, 2]
+        from_a = False
+    else:
+        nx, ny, nz = gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2]
+        from_a = True
+    _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
+    return 1, nx, ny, nz
 
 
 @jit(inline="always")
-def _candidate_order(sat, axes, hx, hy, hz, eps_f, sigma):
-    """The order in which :func:`poly_poly` tries the three axes of ``sat`` (best separation
-    ``sigma``, d), and the band below ``sigma`` (d) within which each is a candidate.
+def _candidate_order(sfa, sfb, se, sigma, eps_f, hinted, ca, cb, ce):
+    """The order in which :func:`poly_poly` tries its three axes, separations ``sfa`` (A's best
+    face axis), ``sfb`` (B's) and ``se`` (the best edge-edge axis), d, best ``sigma``, and the
+    band below ``sigma`` (d) within which each is a candidate. ``hinted``: the pair had a normal at
+    the previous step, whose ``|cos|`` with each axis is ``ca``, ``cb``, ``ce``.
 
     Candidate order: the better face axis, the other one, the edge axis; the edge axis first only
     if it beats both face axes by more than ``eps_f`` (hysteresis); a candidate whose axis is the
-    previous step's normal ``(hx, hy, hz)`` goes first (temporal hysteresis). An axis is a
-    candidate within ``eps_f`` of the best separation, or within ``_KEEP_BAND eps_f`` if it is the
-    previous normal: one band would let an axis at its edge flicker in and out from step to step
-    (the manifold's normal and type flipping at every step, its force with them), and a narrow
-    loop between the two bands pumps a sliding grain (module docstring).
+    previous step's normal goes first (temporal hysteresis). An axis is a candidate within
+    ``eps_f`` of the best separation, or within ``_KEEP_BAND eps_f`` if it is the previous normal:
+    one band would let an axis at its edge flicker in and out from step to step (the manifold's
+    normal and type flipping at every step, its force with them), and a narrow loop between the
+    two bands pumps a sliding grain (module docstring).
 
     Returns ``(o0, o1, o2, band_a, band_b, band_e)``: the axis kinds (``_AXIS_FACE_A``,
-    ``_AXIS_FACE_B``, ``_AXIS_EDGE``) in order, and the bands of A's face axis, B's and the edge
-    axis, d; ``axes``: the world face axes of the pair's
-    :class:`~granpack.contact.separating_axes.WorldGeometry`.
+    ``_AXIS_FACE_B``, ``_AXIS_EDGE``) in order, and the bands of the three axes, d.
     """
-    sfa, kfa, sfb, kfb, se = sat.sfa, sat.kfa, sat.sfb, sat.kfb, sat.se
     first_face = _AXIS_FACE_A if sfa >= sfb else _AXIS_FACE_B
     second_face = _AXIS_FACE_B if sfa >= sfb else _AXIS_FACE_A
     if se > max(sfa, sfb) + eps_f:
@@ -242,10 +290,7 @@ def _candidate_order(sat, axes, hx, hy, hz, eps_f, sigma):
     else:
         o0, o1, o2 = first_face, second_face, _AXIS_EDGE
     band_a = band_b = band_e = eps_f
-    if hx != 0.0 or hy != 0.0 or hz != 0.0:
-        ca = abs(hx * axes[kfa, 0] + hy * axes[kfa, 1] + hz * axes[kfa, 2])
-        cb = abs(hx * axes[kfb, 0] + hy * axes[kfb, 1] + hz * axes[kfb, 2])
-        ce = abs(hx * sat.ex + hy * sat.ey + hz * sat.ez)
+    if hinted:
         hint = max(ca, cb, ce)
         if hint > _HINT_COS:
             band_a = _KEEP_BAND * eps_f if ca == hint else eps_f
@@ -271,52 +316,6 @@ def _candidate_order(sat, axes, hx, hy, hz, eps_f, sigma):
     return o0, o1, o2, band_a, band_b, band_e
 
 
-@jit(inline="always")
-def _face_axis_clip(face_of_a, a, b, ox, oy, oz, sat, geo, tab, alert, scr, pts, gp):
-    """The face manifold of the best face axis of A (``face_of_a``) or of B in ``sat``: the
-    incident face of the other body clipped against the reference face (:func:`_clip_face`), A
-    at the origin and B at ``o`` (d); ``alert`` in d.
-
-    Returns ``(count, gmin, nx, ny, nz)``: the points written to ``pts``, ``gp``, the smallest
-    gap of the clipped polygon (d) and the normal from A to B.
-    """
-    if face_of_a:
-        g = sat.gfa
-        nx, ny, nz = g * geo.axes[sat.kfa, 0], g * geo.axes[sat.kfa, 1], g * geo.axes[sat.kfa, 2]
-        cnt, gmin = _clip_face(geo, tab, a, b, 0.0, 0.0, 0.0, ox, oy, oz, nx, ny, nz, alert, scr, pts, gp)
-    else:
-        g = sat.gfb
-        nx, ny, nz = g * geo.axes[sat.kfb, 0], g * geo.axes[sat.kfb, 1], g * geo.axes[sat.kfb, 2]
-        # reference face on B, outward normal -n
-        cnt, gmin = _clip_face(geo, tab, b, a, ox, oy, oz, 0.0, 0.0, 0.0, -nx, -ny, -nz, alert, scr, pts, gp)
-    return cnt, gmin, nx, ny, nz
-
-
-@jit(inline="always")
-def _fallback_manifold(a, b, ox, oy, oz, sat, geo, alert, eps_f, sigma, scr, pts, gp):
-    """The manifold of :func:`poly_poly` when no axis of ``sat`` gave an exact one: the exact
-    closest points of a separated pair (GJK), else the deepest support point along the best axis
-    (interpenetrating or touching), gap ``sigma`` (d). Returns ``(count, nx, ny, nz)``."""
-    if sigma > 0.0:
-        cnt, nx, ny, nz = _gjk_manifold(geo, a, b, ox, oy, oz, alert, eps_f, scr, pts, gp)
-        if cnt >= 0:
-            return cnt, nx, ny, nz
-    # interpenetration (or touching) without an exact manifold: deepest support point, best axis
-    if sat.se >= max(sat.sfa, sat.sfb):
-        nx, ny, nz = sat.ex, sat.ey, sat.ez
-        from_a = False
-    elif sat.sfa >= sat.sfb:
-        g, k = sat.gfa, sat.kfa
-        nx, ny, nz = g * geo.axes[k, 0], g * geo.axes[k, 1], g * geo.axes[k, 2]
-        from_a = False
-    else:
-        g, k = sat.gfb, sat.kfb
-        nx, ny, nz = g * geo.axes[k, 0], g * geo.axes[k, 1], g * geo.axes[k, 2]
-        from_a = True
-    _deepest_point(geo, a, b, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
-    return 1, nx, ny, nz
-
-
 @jit
 def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
     """Sphere A (radius ``ra``, at the origin) against polyhedron ``b`` (at ``o``), lengths in d;
@@ -325,8 +324,11 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
     Returns ``(count, nx, ny, nz)`` as :func:`poly_poly` (one point at most: the midpoint of the
     closest points; centre inside B: the face of least depth gives the normal and the gap).
     """
-    b0, b1 = geo.vertex_start[b], geo.vertex_start[b + 1]
-    st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, geo.vertices, b0, b1, ox, oy, oz, alert + ra, scr.gjk)
+    pv, pf, rv, fn = geo.vertex_start, geo.face_start, geo.vertices, geo.normals
+    face_start, face_offsets, kind = tab.face_start, tab.face_offsets, tab.kind
+    W, ia, ib, lam, tmp = scr.simplex, scr.simplex_a, scr.simplex_b, scr.weights, scr.face_weights
+    b0, b1 = pv[b], pv[b + 1]
+    st, dist, px, py, pz, qx, qy, qz = gjk_distance(one, 0, 1, rv, b0, b1, ox, oy, oz, alert + ra, W, ia, ib, lam, tmp)
     if st == 1:
         return 0, 0.0, 0.0, 0.0
     if st == 0:
@@ -340,13 +342,11 @@ def _sphere_poly(ra, b, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
         gp[0] = g
         return 1, nx, ny, nz
     # centre inside B: face of least depth; B leaves along -n_f
-    fn = geo.normals
-    f0 = tab.face_start[tab.kind[b]]
+    f0 = face_start[kind[b]]
     best = math.inf
-    fb0, fb1 = geo.face_start[b], geo.face_start[b + 1]
-    fb = fb0
-    for f in range(fb0, fb1):
-        depth = tab.face_offsets[f0 + f - fb0] + fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz
+    fb = pf[b]
+    for f in range(pf[b], pf[b + 1]):
+        depth = face_offsets[f0 + f - pf[b]] + fn[f, 0] * ox + fn[f, 1] * oy + fn[f, 2] * oz
         if depth < best:
             best, fb = depth, f
     nx, ny, nz = -fn[fb, 0], -fn[fb, 1], -fn[fb, 2]
@@ -388,136 +388,73 @@ def _poly_wall(i, zc, geo, alert, pts, gp):
     return cnt
 
 
-@jit(inline="always")
-def _wall_points(i, zi, ri, sphere, geo, alert, pts, gp):
-    """Points of body ``i`` (centre height ``zi``, circumscribed radius ``ri``, d; a sphere if
-    ``sphere``) on the wall z = 0 with gaps up to ``alert`` (d), relative to its centre; returns
-    their count (a sphere: its lowest point's midpoint with the wall)."""
-    if sphere:
-        g = zi - ri
-        if g < alert:
-            pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
-            gp[0] = g
-            return 1
-        return 0
-    return _poly_wall(i, zi, geo, alert, pts, gp)
+@jit
+def _manifold_buffers(cap, max_points):
+    """Empty :class:`_Manifolds` for ``cap`` manifolds of at most ``max_points`` points."""
+    return _Manifolds(np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3)), np.empty((cap, 3)),
+                      np.empty(cap, np.int64), np.zeros(cap + 1, np.int64), np.empty((max_points * cap, 3)),
+                      np.empty(max_points * cap))
 
 
-@jit(inline="always")
-def _sphere_pair(i, j, ox, oy, oz, ri, rj, sphere_i, sphere_j, geo, tab, alert, scr, one, pts, gp):
-    """Manifold of a pair with at least one sphere: candidate ``i`` (radius ``ri``) at ``o`` from
-    antagonist ``j`` (``rj``), d, up to the gap ``alert`` (d). Two spheres: one point midway
-    between their surfaces on the centre line (normal ``e_z`` for coincident centres); else
-    :func:`_sphere_poly` or :func:`_poly_sphere`. Returns ``(count, nx, ny, nz)``."""
-    if sphere_i and sphere_j:
-        d = math.sqrt(ox * ox + oy * oy + oz * oz)
-        g = d - ri - rj
-        if g > alert:
-            return 0, 0.0, 0.0, 0.0
-        if d > 0.0:
-            nx, ny, nz = ox / d, oy / d, oz / d
-        else:
-            nx, ny, nz = 0.0, 0.0, 1.0
-        c = rj + 0.5 * g
-        pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
-        gp[0] = g
-        return 1, nx, ny, nz
-    if sphere_j:
-        return _sphere_poly(rj, i, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
-    return _poly_sphere(j, ri, ox, oy, oz, geo, tab, alert, scr, one, pts, gp)
-
-
-@jit(inline="always")
-def _previous_normal(previous, pp, i, j):
-    """The normal of pair ``(i, j)`` at the previous step, zero if it had none, walking the sorted
-    :class:`PreviousNormals` from row ``pp`` (pairs are visited in ``(i, j)`` order). Returns
-    ``(pp, hx, hy, hz)``, ``pp`` the walk's new row."""
-    nprev = len(previous.body_i)
-    while pp < nprev and (previous.body_i[pp] < i or (previous.body_i[pp] == i and previous.body_j[pp] < j)):
-        pp += 1
-    if pp < nprev and previous.body_i[pp] == i and previous.body_j[pp] == j:
-        return pp, previous.normal[pp, 0], previous.normal[pp, 1], previous.normal[pp, 2]
-    return pp, 0.0, 0.0, 0.0
-
-
-@jit(inline="always")
-def _append_manifold(out, m, npt, i, j, sx, sy, nx, ny, nz, cx, cy, cz, pts, gp, cnt, eps_pt, eps_f):
-    """Write manifold ``m`` of bodies ``i``, ``j`` (shift ``(sx, sy, 0)``, normal ``n``) to the
-    :class:`_Manifolds` ``out``, its ``cnt`` points ``pts`` relative to ``c`` (d) from point row
-    ``npt`` on, after merging points closer than ``eps_pt`` (d); its type from the rank of the
-    points with tolerance ``eps_f`` (d). Returns ``(m, npt)`` past what was written."""
-    cnt = _merge_points(pts, gp, cnt, eps_pt)
-    out.body_i[m], out.body_j[m] = i, j
-    out.shift[m, 0], out.shift[m, 1], out.shift[m, 2] = sx, sy, 0.0
-    out.normal[m, 0], out.normal[m, 1], out.normal[m, 2] = nx, ny, nz
-    out.ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
-    for k in range(cnt):
-        out.point[npt, 0], out.point[npt, 1], out.point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
-        out.gap[npt] = gp[k]
-        npt += 1
-    m += 1
-    out.point_start[m] = npt
-    return m, npt
+@jit
+def _trimmed(out, m, npt, tested):
+    """The first ``m`` manifolds and ``npt`` points of ``out`` (copies), and ``tested``, as
+    :func:`narrow_phase` returns them."""
+    return (out.body_i[:m].copy(), out.body_j[:m].copy(), out.shift[:m].copy(), out.normal[:m].copy(),
+            out.ctype[:m].copy(), out.point_start[:m + 1].copy(), out.point[:npt].copy(), out.gap[:npt].copy(), tested)
 
 
 @jit
 def _scratch(max_points):
     """The :class:`Scratch` of one narrow-phase call, for polyhedra of at most ``max_points``
     vertices and faces of at most ``(max_points - 1) / 2`` vertices."""
-    gjk = GjkScratch(np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4))
-    return Scratch(gjk, np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)),
-                   np.empty((3, 2 * max_points)), np.empty((3, 2 * max_points)), np.empty(2 * max_points))
+    return Scratch(np.empty((4, 3)), np.empty(4, np.int64), np.empty(4, np.int64), np.empty(4), np.empty(4),
+                   np.empty(4, np.int64), np.empty((max_points, 3)), np.empty((max_points, 3)),
+                   np.empty((3, 2 * max_points)), np.empty(2 * max_points))
 
 
 @jit
-def _general_tables(tab):
-    """The :class:`~granpack.contact.separating_axes.GeneralTables` of the kinds of ``tab`` (a
-    :class:`KindTables`), with their scratch, for the separating-axis test of polyhedra that are
-    not both centrally symmetric; ``inradius[k]`` is the radius of the largest ball about the
-    centre inside kind ``k`` (its smallest face offset, d; 0 for a sphere), which prunes the axes
-    of every pair."""
+def _general_tables(tab, axis_extent, edge_arc, n_kinds):
+    """The :class:`~granpack.contact.separating_axes.GeneralTables` of the ``n_kinds`` kinds of
+    ``tab`` (a :class:`KindTables`; ``axis_extent``, ``edge_arc`` those of :class:`KindBounds`),
+    with their scratch, for the separating-axis test of polyhedra that are not both centrally
+    symmetric; ``inradius[k]`` is the radius of the largest ball about the centre inside kind
+    ``k`` (its smallest face offset, d; 0 for a sphere), which prunes the axes of every pair."""
     face_start, face_offsets, edge_start = tab.face_start, tab.face_offsets, tab.edge_start
-    n_kinds = len(tab.radius)
     inradius = np.zeros(n_kinds)
     for k in range(n_kinds):
         if face_start[k + 1] > face_start[k]:
             inradius[k] = face_offsets[face_start[k]:face_start[k + 1]].min()
     max_edges = max(np.diff(edge_start).max(), 1)
     max_faces = max(np.diff(face_start).max(), 1)
-    return GeneralTables(edge_start, tab.edge_faces, tab.edge_direction, tab.edge_arc, tab.axis_extent, inradius,
+    return GeneralTables(edge_start, tab.edge_faces, tab.edge_direction, edge_arc, axis_extent, inradius,
                          np.empty((2, max_faces)), np.empty((4, max_edges)), np.empty(max_edges, np.int64), tab.edges,
                          face_start, face_offsets)
 
 
 @jit
-def narrow_phase(position, geo, tab, symmetric, pairs, previous, lx, ly, alert, reach, eps_f, max_points, i0, i1):
+def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly, alert, reach, eps_f, max_points, i0,
+                 i1):
     """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
 
     Rows are independent (a pair belongs to its row ``i``, the previous normals are looked up by
     ``(i, j)``), so disjoint row ranges may be computed by concurrent threads (the kernel releases
-    the GIL) and their outputs concatenated in row order: the result is that of one call over all
-    rows.
+    the GIL) and their outputs concatenated in row order: the result is that of one call.
 
     Args:
         position: ``(N, 3)`` centres (x, y wrapped into the cell), d.
-        geo: the :class:`~granpack.contact.separating_axes.WorldGeometry` of :func:`world_geometry`.
-        tab: the :class:`KindTables` of the shape table and the particles' kinds.
-        symmetric: the :class:`~granpack.contact.separating_axes.SymmetricTables` of the shape
-            table: the faster separating-axis test of two centrally symmetric polyhedra
-            (:func:`~granpack.contact.separating_axes._sat`).
+        geo, tab, bounds, symmetric: the :class:`~granpack.contact.separating_axes.WorldGeometry`
+            of the particles, the :class:`KindTables` and :class:`KindBounds` of the shape table
+            and its :class:`~granpack.contact.separating_axes.SymmetricTables`.
         pairs: the :class:`CandidatePairs` (``j > i``); their ``axis`` codes are read and updated
-            in rows ``i0:i1`` (see :func:`~granpack.contact.separating_axes._sat`).
-        previous: the previous step's :class:`PreviousNormals`, for the temporal axis hysteresis
-            of :func:`poly_poly`.
-        lx, ly: periods, d.
-        alert: alert distance, d: the largest gap reported.
-        reach: ``(N,)`` per body, d: pair ``(i, j)`` reports gaps up to ``min(alert, reach_i + reach_j)``,
-            the wall pair of ``i`` up to ``min(alert, 2 reach_i)`` (``alert / 2`` everywhere: the
-            one alert distance for every pair).
+            in rows ``i0:i1`` (:func:`~granpack.contact.separating_axes._sat`).
+        previous: the previous step's :class:`PreviousNormals` (temporal axis hysteresis).
+        lx, ly: periods, d; alert: alert distance, d, the largest gap reported.
+        reach: ``(N,)`` per body, d: pair ``(i, j)`` reports gaps up to ``min(alert, reach_i +
+            reach_j)``, the wall pair of ``i`` up to ``min(alert, 2 reach_i)``.
         eps_f: feature band / rank tolerance, d.
         max_points: scratch rows, at least the largest vertex count and twice the largest face
-            size plus one.
-        i0, i1: the rows computed (``0, N`` for all).
+            size plus one; i0, i1: the rows computed (``0, N`` for all).
 
     Returns:
         ``(body_i, body_j, shift, normal, ctype, point_start, point, gap, n_tested)``: the
@@ -526,57 +463,92 @@ def narrow_phase(position, geo, tab, symmetric, pairs, previous, lx, ly, alert, 
         ``alert`` (narrow-phase tests).
     """
     cap = pairs.start[i1] - pairs.start[i0] + (i1 - i0)
-    out = _Manifolds(np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3)), np.empty((cap, 3)),
-                     np.empty(cap, np.int64), np.zeros(cap + 1, np.int64), np.empty((max_points * cap, 3)),
-                     np.empty(max_points * cap))
+    out = _manifold_buffers(cap, max_points)
+    body_i, body_j, shift, normal, ctype = out.body_i, out.body_j, out.shift, out.normal, out.ctype
+    pstart, point, gap = out.point_start, out.point, out.gap
     scr = _scratch(max_points)
     one = np.zeros((1, 3))
-    pts = np.empty((max_points, 3))
-    gp = np.empty(max_points)
+    X, Y = scr.vertex_block, np.empty((3, 2 * max_points))
+    pts, gp = np.empty((max_points, 3)), np.empty(max_points)
     eps_pt = 1e-3 * eps_f
-    gauss = _general_tables(tab)
-    is_sphere, radius, inradius = tab.is_sphere, tab.radius, gauss.inradius
-    m = 0
-    npt = 0
-    tested = 0
-    pp = np.searchsorted(previous.body_i, i0)
+    kind, is_sphere, radius = tab.kind, bounds.is_sphere, bounds.radius
+    gauss = _general_tables(tab, bounds.axis_extent, bounds.edge_arc, len(radius))
+    inradius = gauss.inradius
+    pair_start, pair_j, pair_axis = pairs.start, pairs.partner, pairs.axis
+    prev_i, prev_j, prev_n = previous.body_i, previous.body_j, previous.normal
+    m = npt = tested = 0
+    nprev = len(prev_i)
+    pp = np.searchsorted(prev_i, i0)
     for i in range(i0, i1):
-        ki = tab.kind[i]
+        ki = kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
-        aw = min(alert, 2.0 * reach[i])
-        if zi - ri < aw:
-            cnt = _wall_points(i, zi, ri, is_sphere[ki], geo, aw, pts, gp)
-            if cnt > 0:
-                m, npt = _append_manifold(out, m, npt, i, -1, 0.0, 0.0, 0.0, 0.0, 1.0, xi, yi, zi, pts, gp, cnt,
-                                          eps_pt, eps_f)
-        for q in range(pairs.start[i], pairs.start[i + 1]):
-            j = pairs.partner[q]
-            kj = tab.kind[j]
-            dx = xi - position[j, 0]
-            dy = yi - position[j, 1]
-            sx = lx * math.floor(dx / lx + 0.5)
-            sy = ly * math.floor(dy / ly + 0.5)
-            ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
-            a = min(alert, reach[i] + reach[j])
-            rr = ri + radius[kj] + a
-            if ox * ox + oy * oy + oz * oz >= rr * rr:
-                continue
-            tested += 1
-            if is_sphere[ki] or is_sphere[kj]:
-                cnt, nx, ny, nz = _sphere_pair(i, j, ox, oy, oz, ri, radius[kj], is_sphere[ki], is_sphere[kj], geo,
-                                               tab, a, scr, one, pts, gp)
-            else:
-                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
-                           _KEEP_BAND * eps_f, scr.vertex_block, scr.half_block, pairs.axis[q])
-                pairs.axis[q] = sat.axis
-                if sat.far:
+        # q = pair_start[i] - 1 stands for the wall z = 0 (j = -1), whose manifold comes first
+        for q in range(pair_start[i] - 1, pair_start[i + 1]):
+            if q < pair_start[i]:
+                aw = min(alert, 2.0 * reach[i])
+                if zi - ri >= aw:
                     continue
-                pp, hx, hy, hz = _previous_normal(previous, pp, i, j)
-                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat, geo, tab, a, eps_f, scr, pts, gp)
+                if is_sphere[ki]:
+                    g = zi - ri
+                    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
+                    gp[0] = g
+                    cnt = 1
+                else:
+                    cnt = _poly_wall(i, zi, geo, aw, pts, gp)
+                j, sx, sy, nx, ny, nz, cx, cy, cz = -1, 0.0, 0.0, 0.0, 0.0, 1.0, xi, yi, zi
+            else:
+                j = pair_j[q]
+                kj = kind[j]
+                dx = xi - position[j, 0]
+                dy = yi - position[j, 1]
+                sx = lx * math.floor(dx / lx + 0.5)
+                sy = ly * math.floor(dy / ly + 0.5)
+                ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
+                a = min(alert, reach[i] + reach[j])
+                rr = ri + radius[kj] + a
+                if ox * ox + oy * oy + oz * oz >= rr * rr:
+                    continue
+                tested += 1
+                if is_sphere[ki] and is_sphere[kj]:
+                    d = math.sqrt(ox * ox + oy * oy + oz * oz)
+                    g = d - ri - radius[kj]
+                    if g > a:
+                        continue
+                    nx, ny, nz = (ox / d, oy / d, oz / d) if d > 0.0 else (0.0, 0.0, 1.0)
+                    c = radius[kj] + 0.5 * g
+                    pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
+                    gp[0] = g
+                    cnt = 1
+                elif is_sphere[kj]:
+                    cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+                elif is_sphere[ki]:
+                    cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+                else:
+                    sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
+                               _KEEP_BAND * eps_f, X, Y, pair_axis[q])
+                    pair_axis[q] = sat.axis
+                    if sat.far:
+                        continue
+                    while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
+                        pp += 1
+                    if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
+                        hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
+                    else:
+                        hx, hy, hz = 0.0, 0.0, 0.0
+                    cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat, geo, tab, a, eps_f, scr, pts, gp)
+                cx, cy, cz = position[j, 0] + sx, position[j, 1] + sy, position[j, 2]
             if cnt == 0:
                 continue
-            m, npt = _append_manifold(out, m, npt, i, j, sx, sy, nx, ny, nz, position[j, 0] + sx, position[j, 1] + sy,
-                                      position[j, 2], pts, gp, cnt, eps_pt, eps_f)
-    return (out.body_i[:m].copy(), out.body_j[:m].copy(), out.shift[:m].copy(), out.normal[:m].copy(),
-            out.ctype[:m].copy(), out.point_start[:m + 1].copy(), out.point[:npt].copy(), out.gap[:npt].copy(), tested)
+            cnt = _merge_points(pts, gp, cnt, eps_pt)
+            body_i[m], body_j[m] = i, j
+            shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
+            normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
+            ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
+            for k in range(cnt):
+                point[npt, 0], point[npt, 1], point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
+                gap[npt] = gp[k]
+                npt += 1
+            m += 1
+            pstart[m] = npt
+    return _trimmed(out, m, npt, tested)

@@ -4,6 +4,21 @@ Axes: both bodies' face normals and the cross products of their edge directions 
 Collision Detection*, 2005, §5.2.1); a pair is apart when its projections on one axis do not overlap.
 It runs first because most candidate pairs end at the first axis that separates them by more than the
 alert distance; the best axes of the others are where :mod:`granpack.contact.manifold` builds the contact.
+
+Pruning. A contains the ball of radius ``rho_A`` (its smallest face offset) about its centre, B
+likewise, so along an edge-edge axis ``u`` (B at ``o`` from A)
+
+.. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
+
+and an axis whose bound is below the best separation found so far minus ``margin`` (d, the widest
+hysteresis band) can neither separate the pair nor be a manifold candidate, so its projections are
+skipped. Whole edges of two general polyhedra are pruned before their pairs: for ``u`` on the arc
+of an edge of A (joining the normals of its two faces on the Gauss map), :math:`s(u) \\le u \\cdot
+(o - p) - \\rho_B` with ``p`` a point of the edge, and :math:`n_k \\cdot (o - p) = n_k \\cdot o -
+d_k` with ``d_k`` the offset of face ``k`` (``p`` lies on both faces), so :func:`_arc_max` of those
+two values bounds the edge's every axis (B's edges likewise, along ``-m`` of their arc, less
+``rho_A``); a cheaper bound, the larger value times the secant of half the arc (no square root),
+rejects most edges first.
 """
 
 from __future__ import annotations
@@ -229,8 +244,8 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
     a :class:`SymmetricTables`: when both bodies are centrally symmetric (kinds with a non-empty
     block of ``half``) the separation along ``u`` is ``|u . o| - h_A - h_B`` with the supports
     ``h`` read from half the vertices in ``Y`` (:func:`_half_support`), or, along a body's own
-    face axes, from ``axis_support`` (d), a constant of the shape; ``X`` is then filled only for a
-    pair that is not separated. The two paths are written out at each axis on purpose
+    face axes, from ``axis_support`` (d), a constant of the shape; ``X`` is then filled only for
+    a pair that is not separated. The two paths are written out at each axis on purpose
     (docs/design-notes.md, "Separating-axis test: speed").
 
     Axes: both bodies' face axes, then the edge-edge axes: every pair of edge directions of two
@@ -240,15 +255,9 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
     over all directions, minus the penetration depth; that of a separated pair is a lower bound of
     the distance (the manifold's gaps are exact: :mod:`granpack.contact.narrowphase`).
 
-    Edge-edge axes are pruned with a rigorous bound: A contains the ball of radius ``rho_A`` (its
-    smallest face offset) about its centre, B likewise, so along an edge-edge axis ``u``
-
-    .. math:: s(u) \\le |u \\cdot o| - \\rho_A - \\rho_B ,
-
-    and an axis whose bound is below the best separation found so far minus ``margin`` (d, the
-    widest hysteresis band, ``_KEEP_BAND eps_f`` of :mod:`granpack.contact.narrowphase`) can
-    neither separate the pair nor be a manifold candidate, so its projections are skipped
-    (``rin = rho_A + rho_B``, d; :func:`_unit_cross`).
+    Edge-edge axes are pruned by the bound of the module docstring (``rin = rho_A + rho_B``, d;
+    ``margin``, d, the widest hysteresis band, ``_KEEP_BAND eps_f`` of
+    :mod:`granpack.contact.narrowphase`; :func:`_unit_cross`).
 
     ``cached`` is the axis that separated the pair at the previous call (code below, -1 if
     none): it is tried first, and a pair it still separates by more than ``alert`` (d) costs one
@@ -261,20 +270,30 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
         line (``nfa``, ``nfb`` the face-axis counts, ``ndb`` B's edge-direction count). A pair that
         is not separated has ``axis`` -1.
     """
-    a0, a1 = geo.vertex_start[a], geo.vertex_start[a + 1]
-    b0, b1 = geo.vertex_start[b], geo.vertex_start[b + 1]
+    vertex_start, axis_start, rv, ax = geo.vertex_start, geo.axis_start, geo.vertices, geo.axes
+    half_start, half, kind_axis_start, support = (symmetric.half_start, symmetric.half, symmetric.axis_start,
+                                                  symmetric.axis_support)
+    a0, a1, b0, b1 = vertex_start[a], vertex_start[a + 1], vertex_start[b], vertex_start[b + 1]
+    aa0, aa1, ab0, ab1 = axis_start[a], axis_start[a + 1], axis_start[b], axis_start[b + 1]
+    inf = math.inf
     na = a1 - a0
     nb = b1 - b0
-    half_start = symmetric.half_start
-    nha = half_start[ka + 1] - half_start[ka]
-    nhb = half_start[kb + 1] - half_start[kb]
+    ha0, hb0 = half_start[ka], half_start[kb]
+    nha = half_start[ka + 1] - ha0
+    nhb = half_start[kb + 1] - hb0
+    sa0, sb0 = kind_axis_start[ka], kind_axis_start[kb]
     sym = nha > 0 and nhb > 0
     if sym:
-        _gather_halves(geo.vertices, a0, b0, symmetric.half, half_start[ka], nha, half_start[kb], nhb, Y)
+        for k in range(nha):
+            r = a0 + half[ha0 + k]
+            Y[0, k], Y[1, k], Y[2, k] = rv[r, 0], rv[r, 1], rv[r, 2]
+        for k in range(nhb):
+            r = b0 + half[hb0 + k]
+            Y[0, nha + k], Y[1, nha + k], Y[2, nha + k] = rv[r, 0], rv[r, 1], rv[r, 2]
     else:
-        _gather(geo.vertices, a0, a1, b0, b1, ox, oy, oz, X)
-    nfa = geo.axis_start[a + 1] - geo.axis_start[a]
-    nfb = geo.axis_start[b + 1] - geo.axis_start[b]
+        _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
+    nfa = aa1 - aa0
+    nfb = ab1 - ab0
     # cheap first tries: the cached axis, then the centre-to-centre direction
     for attempt in range(2):
         if attempt == 0:
@@ -294,87 +313,40 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
         if s > alert:
             return _separated(cached if attempt == 0 else -1)
     if not sym:
-        return _general_axes(geo, a, b, ka, kb, ox, oy, oz, symmetric.axis_start, gauss, alert, rin, margin, X, na,
-                             nb, nfa, nfb)
-    aa0, ab0 = geo.axis_start[a], geo.axis_start[b]
-    sa0, sb0 = symmetric.axis_start[ka], symmetric.axis_start[kb]
-    far, sfa, kfa, gfa = _symmetric_face_axes(geo.axes, aa0, aa0 + nfa, ox, oy, oz, symmetric.axis_support, sa0, Y,
-                                              nha, nha + nhb, True, alert)
-    if far:
-        return _separated(kfa - aa0)
-    far, sfb, kfb, gfb = _symmetric_face_axes(geo.axes, ab0, ab0 + nfb, ox, oy, oz, symmetric.axis_support, sb0, Y,
-                                              0, nha, False, alert)
-    if far:
-        return _separated(nfa + kfb - ab0)
+        extent, inradius = gauss.axis_extent, gauss.inradius
+        far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert, True)
+        if far:
+            return _separated(kfa - aa0)
+        far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert, False)
+        if far:
+            return _separated(nfa + kfb - ab0)
+        far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb,
+                                                                 alert, max(sfa, sfb), margin, rin)
+        if far:
+            return _separated(nfa + nfb + code)
+        return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
+    sfa, kfa, gfa = -inf, -1, 1.0
+    for k in range(aa0, aa1):
+        s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2], support[sa0 + k - aa0],
+                           _half_support(Y, nha, nha + nhb, ax[k, 0], ax[k, 1], ax[k, 2]))
+        if s > alert:
+            return _separated(k - aa0)
+        if s > sfa:
+            sfa, kfa, gfa = s, k, g
+    sfb, kfb, gfb = -inf, -1, 1.0
+    for k in range(ab0, ab1):
+        s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2],
+                           _half_support(Y, 0, nha, ax[k, 0], ax[k, 1], ax[k, 2]), support[sb0 + k - ab0])
+        if s > alert:
+            return _separated(nfa + k - ab0)
+        if s > sfb:
+            sfb, kfb, gfb = s, k, g
     far, se, ie, je, ex, ey, ez, code = _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert,
                                                              max(sfa, sfb), margin, rin)
     if far:
         return _separated(nfa + nfb + code)
-    _gather(geo.vertices, a0, a1, b0, b1, ox, oy, oz, X)
+    _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
-
-
-@jit(inline="always")
-def _general_axes(geo, a, b, ka, kb, ox, oy, oz, axis_start, gauss, alert, rin, margin, X, na, nb, nfa, nfb):
-    """The face and edge-edge axes of :func:`_sat` for two polyhedra that are not both centrally
-    symmetric, their vertex block in ``X`` (``na`` of A's, ``nb`` of B's): each body's face axes
-    (:func:`_face_axes`), then the edges that make faces of the Minkowski difference
-    (:func:`_minkowski_edge_axes`). ``axis_start``: the shape table's face-axis rows per kind
-    (rows of ``gauss.axis_extent``); ``nfa``, ``nfb``: the two face-axis counts; the other
-    arguments as :func:`_sat`, which returns the :class:`SatResult` returned here."""
-    aa0, ab0 = geo.axis_start[a], geo.axis_start[b]
-    extent, inradius = gauss.axis_extent, gauss.inradius
-    far, sfa, kfa, gfa = _face_axes(X, na, nb, geo.axes, aa0, aa0 + nfa, ox, oy, oz, extent, axis_start[ka],
-                                    inradius[kb], alert, True)
-    if far:
-        return _separated(kfa - aa0)
-    far, sfb, kfb, gfb = _face_axes(X, na, nb, geo.axes, ab0, ab0 + nfb, -ox, -oy, -oz, extent, axis_start[kb],
-                                    inradius[ka], alert, False)
-    if far:
-        return _separated(nfa + kfb - ab0)
-    far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb,
-                                                             alert, max(sfa, sfb), margin, rin)
-    if far:
-        return _separated(nfa + nfb + code)
-    return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
-
-
-@jit(inline="always")
-def _symmetric_face_axes(axes, k0, k1, ox, oy, oz, axis_support, s0, Y, c0, c1, own_is_a, alert):
-    """Best face axis of one of two centrally symmetric bodies P (world rows ``k0:k1`` of
-    ``axes``), B at ``o`` from A (d): along P's own axis P's support is ``axis_support[s0 + k -
-    k0]`` (d), the other body's is read from its half vertices, columns ``c0:c1`` of ``Y``
-    (:func:`_half_support`); ``own_is_a``: P is A. Among equal separations the first row is kept.
-
-    Returns ``(far, s, k, g)``: ``far`` when axis ``k`` separates by more than ``alert`` (d);
-    otherwise the best separation ``s`` (d), its row ``k`` and the side ``g = +-1`` of B.
-    """
-    sf, kf, gf = -math.inf, -1, 1.0
-    for k in range(k0, k1):
-        if own_is_a:
-            s, g = _signed_gap(ox, oy, oz, axes[k, 0], axes[k, 1], axes[k, 2], axis_support[s0 + k - k0],
-                               _half_support(Y, c0, c1, axes[k, 0], axes[k, 1], axes[k, 2]))
-        else:
-            s, g = _signed_gap(ox, oy, oz, axes[k, 0], axes[k, 1], axes[k, 2],
-                               _half_support(Y, c0, c1, axes[k, 0], axes[k, 1], axes[k, 2]), axis_support[s0 + k - k0])
-        if s > alert:
-            return True, s, k, g
-        if s > sf:
-            sf, kf, gf = s, k, g
-    return False, sf, kf, gf
-
-
-@jit(inline="always")
-def _gather_halves(vertices, a0, b0, half, ha0, nha, hb0, nhb, Y):
-    """Half vertex blocks of two centrally symmetric bodies, coordinate-major: ``Y[:, 0:nha]`` one
-    vertex of each antipodal pair of A (local indices ``half[ha0:ha0 + nha]`` of its rows from
-    ``a0``), then B's, as offsets from each body's own centre (d)."""
-    for k in range(nha):
-        r = a0 + half[ha0 + k]
-        Y[0, k], Y[1, k], Y[2, k] = vertices[r, 0], vertices[r, 1], vertices[r, 2]
-    for k in range(nhb):
-        r = b0 + half[hb0 + k]
-        Y[0, nha + k], Y[1, nha + k], Y[2, nha + k] = vertices[r, 0], vertices[r, 1], vertices[r, 2]
 
 
 @jit(inline="always")
@@ -457,13 +429,13 @@ def _axis_of_code(geo, a, b, code, nfa, nfb):
     (``nfa``, ``nfb`` the two face-axis counts): a face axis, or the normalised cross product
     ``c`` of the two edge directions (``c |c|^2``, a vector too short to separate anything, when
     they have turned parallel, ``|c|^2 <= 1e-12``)."""
+    pa, pd, ax, dr = geo.axis_start, geo.direction_start, geo.axes, geo.directions
     if code < nfa + nfb:
-        r = geo.axis_start[a] + code if code < nfa else geo.axis_start[b] + code - nfa
-        return geo.axes[r, 0], geo.axes[r, 1], geo.axes[r, 2]
-    dr = geo.directions
-    ndb = geo.direction_start[b + 1] - geo.direction_start[b]
-    i = geo.direction_start[a] + (code - nfa - nfb) // ndb
-    j = geo.direction_start[b] + (code - nfa - nfb) % ndb
+        r = pa[a] + code if code < nfa else pa[b] + code - nfa
+        return ax[r, 0], ax[r, 1], ax[r, 2]
+    ndb = pd[b + 1] - pd[b]
+    i = pd[a] + (code - nfa - nfb) // ndb
+    j = pd[b] + (code - nfa - nfb) % ndb
     cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
     cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
     cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
@@ -570,36 +542,51 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
     equal separations the pair of directions ``(i, j)`` first in ``j``-major order is kept; axes
     are pruned by :func:`_unit_cross` (threshold ``max(best, se) - margin + rin - 1e-12``, d).
 
-    Whole edges are pruned first: for ``u`` on A's arc, :math:`s(u) \\le u \\cdot (o - p) -
-    \\rho_B`, and :math:`n_k \\cdot (o - p) = n_k \\cdot o - d_k` with ``d_k`` the offset of face
-    ``k`` (``p`` lies on both faces), so :func:`_arc_max` of those two values bounds the edge's
-    every axis (B's edges likewise, along ``-m`` of their arc, less ``rho_A``); an edge whose bound
-    is below ``max(best, se) - margin - 1e-12`` pairs with no edge worth trying, and a cheaper bound,
-    the larger value times the secant of half the arc (no square root), rejects most of them first.
-    Only the edges facing the other body are paired.
-
-    ``gauss`` is the :class:`GeneralTables` of the shape table: the edges and faces of each kind,
-    the radius ``rho`` of each kind, and the scratch the bounds are kept in.
+    Whole edges are pruned first (module docstring): an edge whose bound is below ``max(best, se) -
+    margin - 1e-12`` pairs with no edge worth trying. ``gauss``: the :class:`GeneralTables`.
 
     Returns ``(far, se, ie, je, ex, ey, ez, code)``: ``far`` when an axis separates by more than
     ``alert`` (d), its code ``i ndb + j`` (local direction indices); otherwise the best
     separation ``se`` (d; ``-inf`` if no crossing pair), its direction indices and the unit axis
     oriented from A to B.
     """
-    fn, rv, edges, edge_faces, edge_arc = geo.normals, geo.vertices, gauss.edges, gauss.edge_faces, gauss.edge_arc
-    a0, b0 = geo.vertex_start[a], geo.vertex_start[b]
-    fa0, fb0 = geo.face_start[a], geo.face_start[b]
-    da0, db0 = geo.direction_start[a], geo.direction_start[b]
-    ea0, ea1 = gauss.edge_start[ka], gauss.edge_start[ka + 1]
-    ndb = geo.direction_start[b + 1] - db0
+    pv, pf, pd = geo.vertex_start, geo.face_start, geo.direction_start
+    rv, fn, dr = geo.vertices, geo.normals, geo.directions
+    edge_start, edge_faces, edge_dir = gauss.edge_start, gauss.edge_faces, gauss.edge_direction
+    edge_arc, inradius, edges = gauss.edge_arc, gauss.inradius, gauss.edges
+    face_start, face_offsets, W = gauss.face_start, gauss.face_offsets, gauss.face_bound
+    Z, sel = gauss.edge_bound, gauss.selected_edges
+    a0, b0, fa0, fb0, da0, db0 = pv[a], pv[b], pf[a], pf[b], pd[a], pd[b]
+    oa0, ob0 = face_start[ka], face_start[kb]
+    ea0, ea1, eb0, eb1 = edge_start[ka], edge_start[ka + 1], edge_start[kb], edge_start[kb + 1]
+    ndb = pd[b + 1] - db0
     t = best - margin + rin - 1e-12
     # the edges' own bound (below) is compared with the best separation less the margin
     t_edge = best - margin - 1e-12
-    rho_b = gauss.inradius[kb]
+    rho_a, rho_b = inradius[ka], inradius[kb]
     slack = 1e-9 * math.sqrt(ox * ox + oy * oy + oz * oz)
-    _face_bounds(geo, gauss, a, b, ka, kb, ox, oy, oz)
-    nsel = _edges_of_b(geo, gauss, b, kb, gauss.inradius[ka], slack, t_edge)
-    W, Z, sel, eb0 = gauss.face_bound, gauss.edge_bound, gauss.selected_edges, gauss.edge_start[kb]
+    for f in range(pf[a + 1] - fa0):
+        W[0, f] = fn[fa0 + f, 0] * ox + fn[fa0 + f, 1] * oy + fn[fa0 + f, 2] * oz - face_offsets[oa0 + f]
+    for f in range(pf[b + 1] - fb0):
+        W[1, f] = -(fn[fb0 + f, 0] * ox + fn[fb0 + f, 1] * oy + fn[fb0 + f, 2] * oz) - face_offsets[ob0 + f]
+    nsel = 0
+    for e in range(eb1 - eb0):
+        f1, f2 = edge_faces[eb0 + e, 0], edge_faces[eb0 + e, 1]
+        # B's arc is that of -m1, -m2, B's edge at q on both faces (m . q their offsets): along
+        # u = -m of the arc, s(u) = u . (o + q) - h_A(u) <= -m . o - m . q - rho_A
+        top = max(W[1, f1], W[1, f2])
+        if (top * edge_arc[eb0 + e, 1] if top > 0.0 else top) + slack - rho_a < t_edge:
+            continue  # the cheap bound of _arc_max's, no square root
+        Z[3, e] = _arc_max(W[1, f1], W[1, f2], edge_arc[eb0 + e, 0], slack) - rho_a
+        m1, m2 = fb0 + f1, fb0 + f2
+        if Z[3, e] < t_edge:
+            continue
+        # q = (-m2) x (-m1) = m2 x m1
+        Z[0, e] = fn[m2, 1] * fn[m1, 2] - fn[m2, 2] * fn[m1, 1]
+        Z[1, e] = fn[m2, 2] * fn[m1, 0] - fn[m2, 0] * fn[m1, 2]
+        Z[2, e] = fn[m2, 0] * fn[m1, 1] - fn[m2, 1] * fn[m1, 0]
+        sel[nsel] = e
+        nsel += 1
     se, ie, je, ex, ey, ez = -math.inf, -1, -1, 0.0, 0.0, 0.0
     for ea in range(ea0, ea1):
         n1 = fa0 + edge_faces[ea, 0]
@@ -628,8 +615,8 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
             n2q = fn[n2, 0] * Z[0, e] + fn[n2, 1] * Z[1, e] + fn[n2, 2] * Z[2, e]
             if n1q * n2q >= 0.0 or cp * n2q <= 0.0:
                 continue
-            i, j = gauss.edge_direction[ea], gauss.edge_direction[eb0 + e]
-            ok, cx, cy, cz = _unit_cross(geo.directions, da0 + i, db0 + j, ox, oy, oz, t)
+            i, j = edge_dir[ea], edge_dir[eb0 + e]
+            ok, cx, cy, cz = _unit_cross(dr, da0 + i, db0 + j, ox, oy, oz, t)
             if not ok:
                 continue
             # the axis lies in A's edge's normal cone (the arc n1..n2) once turned towards
@@ -650,51 +637,3 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
                 if bound < t_edge:
                     break
     return False, se, ie, je, ex, ey, ez, -1
-
-
-@jit(inline="always")
-def _face_bounds(geo, gauss, a, b, ka, kb, ox, oy, oz):
-    """Fill ``gauss.face_bound`` for :func:`_minkowski_edge_axes`: row 0, ``n . o - d_n`` for
-    every face of A (normal ``n``, offset ``d_n``), row 1, ``-m . o - d_m`` for every face of B
-    (normal ``m``), d, B at ``o`` from A; a point of an edge lies on its two faces, so these bound
-    the separation along the edge's arc (:func:`_arc_max`)."""
-    fn, face_offsets, W = geo.normals, gauss.face_offsets, gauss.face_bound
-    fa0, fb0 = geo.face_start[a], geo.face_start[b]
-    oa0, ob0 = gauss.face_start[ka], gauss.face_start[kb]
-    for f in range(geo.face_start[a + 1] - fa0):
-        W[0, f] = fn[fa0 + f, 0] * ox + fn[fa0 + f, 1] * oy + fn[fa0 + f, 2] * oz - face_offsets[oa0 + f]
-    for f in range(geo.face_start[b + 1] - fb0):
-        W[1, f] = -(fn[fb0 + f, 0] * ox + fn[fb0 + f, 1] * oy + fn[fb0 + f, 2] * oz) - face_offsets[ob0 + f]
-
-
-@jit(inline="always")
-def _edges_of_b(geo, gauss, b, kb, rho_a, slack, t_edge):
-    """The edges of B (kind ``kb``) worth pairing in :func:`_minkowski_edge_axes`: those whose
-    bound (:func:`_arc_max` of row 1 of ``gauss.face_bound``, plus ``slack``, less ``rho_a``, d)
-    reaches ``t_edge`` (d). Writes their local indices to ``gauss.selected_edges`` and, per kept
-    edge ``e``, its arc's pole ``q = m2 x m1`` to rows 0-2 and its bound to row 3 of column ``e``
-    of ``gauss.edge_bound``; returns how many were kept."""
-    fn, edge_faces, edge_arc = geo.normals, gauss.edge_faces, gauss.edge_arc
-    W, Z, sel = gauss.face_bound, gauss.edge_bound, gauss.selected_edges
-    fb0 = geo.face_start[b]
-    eb0, eb1 = gauss.edge_start[kb], gauss.edge_start[kb + 1]
-    nsel = 0
-    for e in range(eb1 - eb0):
-        f1, f2 = edge_faces[eb0 + e, 0], edge_faces[eb0 + e, 1]
-        # B's arc is that of -m1, -m2, B's edge at q on both faces (m . q their offsets): along
-        # u = -m of the arc, s(u) = u . (o + q) - h_A(u) <= -m . o - m . q - rho_A
-        top = max(W[1, f1], W[1, f2])
-        if (top * edge_arc[eb0 + e, 1] if top > 0.0 else top) + slack - rho_a < t_edge:
-            continue  # the cheap bound of _arc_max's, no square root
-        Z[3, e] = _arc_max(W[1, f1], W[1, f2], edge_arc[eb0 + e, 0], slack) - rho_a
-        m1, m2 = fb0 + f1, fb0 + f2
-        if Z[3, e] < t_edge:
-            continue
-        # q = (-m2) x (-m1) = m2 x m1
-        Z[0, e] = fn[m2, 1] * fn[m1, 2] - fn[m2, 2] * fn[m1, 1]
-        Z[1, e] = fn[m2, 2] * fn[m1, 0] - fn[m2, 0] * fn[m1, 2]
-        Z[2, e] = fn[m2, 0] * fn[m1, 1] - fn[m2, 1] * fn[m1, 0]
-        sel[nsel] = e
-        nsel += 1
-    return nsel
-
