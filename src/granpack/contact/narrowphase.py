@@ -70,7 +70,7 @@ from granpack.contact.manifold import (
 )
 from granpack.contact.separating_axes import GeneralTables, _sat, world_geometry
 
-__all__ = ["CandidatePairs", "KindTables", "PreviousNormals", "Scratch", "narrow_phase", "world_geometry"]
+__all__ = ["CandidatePairs", "KindBounds", "KindTables", "PreviousNormals", "Scratch", "narrow_phase", "world_geometry"]
 
 _AXIS_FACE_A, _AXIS_FACE_B, _AXIS_EDGE = 0, 1, 2
 #: |cos| between the previous normal and an axis above which the axis counts as the previous one
@@ -95,8 +95,9 @@ KindTables = namedtuple("KindTables", [
     "kind",  # (N,) int64: each particle's kind
 ])
 
-#: Per kind, the bounding sphere of the broad and narrow phases and the bounds of the
-#: separating-axis test of general polyhedra (:func:`_general_tables`).
+#: Per kind, whether it is a sphere, its bounding sphere, and the bounds of the separating-axis
+#: test of general polyhedra (:func:`_general_tables`); built once per shape table by
+#: :class:`granpack.contact.detect._Tables`.
 KindBounds = namedtuple("KindBounds", [
     "is_sphere",  # (K,) bool: the kind is a sphere
     "radius",  # (K,) float64: circumscribed radius of each kind (a sphere's radius), d
