@@ -384,12 +384,13 @@ def test_a_final_state_is_checked_by_its_git_blob_id(final_states, tmp_path):
 
 
 def test_the_tree_holds_no_final_state_and_the_manifest_names_kept_runs(final_states):
-    """A clone of the tip stays small: no kept run's final.gsd is tracked, the tracked files weigh
-    under 60 MB, and every final state the manifest lists belongs to a kept run of the tree."""
+    """A clone of the tip stays small: no kept run's final state, checkpoint or other snapshot is
+    tracked, the tracked files weigh under 60 MB, and every final state the manifest lists belongs
+    to a kept run of the tree."""
     if not (BENCHMARKS.parent / ".git").exists():
         pytest.skip("not a git clone")
     tracked = _git("ls-files", "-z").split("\0")
-    assert not [p for p in tracked if p.startswith("benchmarks/validation/runs/") and p.endswith("/final.gsd")]
+    assert not [p for p in tracked if p.startswith("benchmarks/validation/runs/") and p.endswith(".gsd")]
     root = BENCHMARKS.parent
     assert sum((root / p).stat().st_size for p in tracked if p and (root / p).is_file()) < 60e6
     manifest = final_states.read_manifest()
