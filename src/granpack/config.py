@@ -635,6 +635,11 @@ class OverlapConfig(_Model):
         0.0, "sqrt(g d)", ge=0, description="Largest speed of that slow recovery at rest; 0: none, the run "
         "ends at the first pass of the window with its overlaps up to recovery_slop. Rule of thumb: 2e-4 "
         "brings the expansion coefficient k down about three times, for tens of sqrt(d/g) more to rest.")
+    slop_scale: Literal["largest", "pair"] = _setting(
+        "largest", description='What the slops above and below are in: "largest", d for every pair (the '
+        'kept runs\' rule); "pair", each pair\'s slops times its smaller grain\'s circumscribed size over the '
+        'largest grain\'s, so that small grains overlap no deeper relative to their size than large ones '
+        '(a wide grading: the projection and recovery act on the small grains at their own scale).')
     projection_slop: _Number = _setting(
         2e-3, "d", ge=0, description="Overlap above which positions are also projected after a step (to 0.1 "
         "of it): a backstop for the overlaps the recovery has not yet pushed back; 0: none.")

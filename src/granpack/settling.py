@@ -37,6 +37,7 @@ from granpack.contact import ContactSet, Detector
 from granpack.equilibrium import EquilibriumReport, check_equilibrium, criteria_of
 from granpack.mixture import Mixture
 from granpack.nscd import StepParameters, advance, predict
+from granpack.nscd.problem import body_slop_scale, pair_slop_scale
 from granpack.nscd.step_policy import step_alert, step_reach
 from granpack.packing import Packing
 from granpack.run_record import RunRecord, timeline_row
@@ -64,7 +65,8 @@ def step_parameters(config: RunConfig) -> StepParameters:
         tolerance=s.tolerance, max_iterations=s.max_iterations, check_every=s.check_every,
         alert=config.resolved_alert_distance, overlap_slop=o.projection_slop,
         recovery_slop=o.recovery_slop, recovery_rate=o.recovery_rate, recovery_speed=o.recovery_speed,
-        parallel_points=points if points > 0 else 2**62, nncg=s.acceleration == "nncg",
+        slops_by_pair=o.slop_scale == "pair", parallel_points=points if points > 0 else 2**62,
+        nncg=s.acceleration == "nncg",
     )
 
 
@@ -269,7 +271,7 @@ class Settling:
         self.record.last_report = report.as_dict()
         if m.passes < policy.window:
             return False
-        if not rest_recovery_due(policy, self.params, self.record, self.contacts):
+        if not rest_recovery_due(policy, self.params, self.record, self.contacts, state.radius):
             return True
         m.rest_recovery_from = state.time
         m.passes = 0
@@ -282,10 +284,12 @@ class Settling:
         return self.contacts if self.contacts is not None else ContactSet.empty()
 
 
-def rest_recovery_due(policy: SettlingPolicy, params: StepParameters, record: RunRecord, contacts: ContactSet) -> bool:
+def rest_recovery_due(policy: SettlingPolicy, params: StepParameters, record: RunRecord, contacts: ContactSet,
+                      radius: np.ndarray) -> bool:
     """Whether a pile that has just met the criteria starts the slow overlap recovery instead of
     ending: once per run, when it is on (``overlap.rest_recovery_speed > 0``) and some overlap is
-    deeper than ``overlap.rest_recovery_slop``.
+    deeper than ``overlap.rest_recovery_slop`` (times the pair's slop factor when the slops are
+    scaled by the pair, :func:`granpack.nscd.problem.body_slop_scale`).
 
     Why: a pile comes to rest with its loaded contacts overlapping by up to the fast recovery's
     slop, deepest where the load is largest, and the overlaps weighted by their forces make k (the
@@ -293,8 +297,14 @@ def rest_recovery_due(policy: SettlingPolicy, params: StepParameters, record: Ru
     settling, they shrink to the slow slop while the pile stays quasi-static; the window then
     starts again, so the packing written is one at rest with the small overlaps.
     """
-    return (record.milestones.rest_recovery_from is None and policy.rest_recovery_speed > 0 and params.recovery_rate > 0
-            and contacts.n_points > 0 and float(-contacts.gap.min()) > policy.rest_recovery_slop)
+    if not (record.milestones.rest_recovery_from is None and policy.rest_recovery_speed > 0 and params.recovery_rate > 0
+            and contacts.n_points > 0):
+        return False
+    slop = policy.rest_recovery_slop
+    if params.slops_by_pair:
+        pair = pair_slop_scale(contacts.body_i, contacts.body_j, body_slop_scale(radius))
+        slop = slop * np.repeat(pair, np.diff(contacts.point_start))
+    return bool(np.any(-contacts.gap > slop))
 
 
 def shake_due(policy: SettlingPolicy, record: RunRecord, report: EquilibriumReport, time_now: float) -> bool:

@@ -14,7 +14,9 @@ solve the end-of-step gap of every point is predicted to first order,
 
 .. math:: g^{end}_α = g_α + θ h\\, u_{n,α}^{n+1},
 
-and when some overlap exceeds the slop ``s`` (``min g^end < -s``), a post-step projection
+and when some overlap exceeds the slop ``s`` (``min g^end < -s``; each point's ``s`` times its
+pair's slop factor when the slops are scaled by the pair, :func:`granpack.nscd.problem.body_slop_scale`),
+a post-step projection
 (post-stabilisation, Cline & Pai 2003) solves, with the same NLGS, the linear complementarity
 problem for pseudo-impulses ``p`` whose 'velocities' are translations:
 
@@ -65,7 +67,7 @@ import numpy as np
 from granpack._numba import thread_count
 from granpack.contact.contacts import ContactSet
 from granpack.nscd.nlgs import NLGSOptions, solve
-from granpack.nscd.problem import assemble
+from granpack.nscd.problem import assemble, body_slop_scale
 from granpack.nscd.rigid import kinetic_energy, predict_kernel, update_kernel
 from granpack.nscd.warmstart import warm_impulses
 from granpack.state import ParticleState
@@ -111,6 +113,11 @@ class StepParameters:
             ``slow_recovery_slop`` (d) is pushed back at ``recovery_rate`` of that excess per step, at
             most at ``slow_recovery_speed`` (sqrt(g d)); speed 0: none (a pile at rest,
             :mod:`granpack.settling`).
+        slops_by_pair: every slop above (recovery, slow tier, projection) is, for each pair,
+            multiplied by its smaller grain's circumscribed size over the largest grain's
+            (:func:`granpack.nscd.problem.body_slop_scale`), so that the overlap relative to the
+            pair's grains is bounded alike; ``False``: the slops in d for every pair
+            (``overlap.slop_scale``).
         damping: rate γ of a viscous damping of every grain's velocity after the step,
             ``(v, ω) <- e^{-γ h} (v, ω)``, 1/sqrt(d/g); 0: none (the end game of a settling run,
             :mod:`granpack.settling`).
@@ -145,6 +152,7 @@ class StepParameters:
     recovery_speed: float = 0.05
     slow_recovery_slop: float = 0.0
     slow_recovery_speed: float = 0.0
+    slops_by_pair: bool = False
     damping: float = 0.0
     parallel_points: int = 2000
     nncg: bool = True
@@ -292,12 +300,14 @@ def advance(
     t0 = time.perf_counter()
     h, theta = float(params.time_step), float(params.theta)
     pr = prediction
+    scale = body_slop_scale(state.radius) if params.slops_by_pair else None
     problem = assemble(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
         restitution=params.restitution, friction=params.friction,
         side=_sides(pr.x_tt, contacts.point[:, 2]) if contacts.n_points >= params.parallel_points else None,
         recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
         slow_recovery_slop=params.slow_recovery_slop, slow_recovery_speed=params.slow_recovery_speed,
+        slop_scale=scale,
     )
     tol_warm = params.warm_tolerance * 2.0 * float(state.shapes.radius.min())
     r0, n_warm = warm_impulses(
@@ -315,8 +325,11 @@ def advance(
     max_overlap = float(max(0.0, -problem.gap.min())) if problem.n_points else 0.0
     if problem.n_points and params.overlap_slop > 0:
         gap_end = problem.gap + theta * h * problem.local_velocity(v_end)[:, 0]
-        if gap_end.min() < -params.overlap_slop:
-            displacement, correction_iterations = _position_correction(problem, gap_end, params)
+        slop = params.overlap_slop
+        if scale is not None:
+            slop = slop * np.minimum(scale[problem.body[:, 0]], scale[problem.body[:, 1]])
+        if np.any(gap_end < -slop):
+            displacement, correction_iterations = _position_correction(problem, gap_end, slop, params)
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
     update_kernel.sized(state.n)(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, params.rotation_from_start,
@@ -362,15 +375,16 @@ def _sides(position: np.ndarray, point_height: np.ndarray) -> np.ndarray:
     return side
 
 
-def _position_correction(problem, gap_end: np.ndarray, params: StepParameters) -> tuple[np.ndarray, int]:
-    """Bounded post-step projection (see the module docstring): ``(displacements (N + 1, 6), sweeps)``.
+def _position_correction(problem, gap_end: np.ndarray, slop, params: StepParameters) -> tuple[np.ndarray, int]:
+    """Bounded post-step projection (see the module docstring): ``(displacements (N + 1, 6), sweeps)``;
+    ``slop`` is ``s``, d, one for all points or ``(P,)`` one per point.
 
     The projection brings every linearised gap to ``>= -κ s``; when some body would move by more
     than ``correction_step``, every translation is scaled by one common factor ``λ`` so that the
     longest is ``correction_step``. The linearised gaps then end at ``(1 - λ) g^end + λ g^full``
     with ``g^full >= -κ s``: none deeper than before the correction, every overlap smaller.
     """
-    target = gap_end + CORRECTED_OVERLAP * params.overlap_slop
+    target = gap_end + CORRECTED_OVERLAP * slop
     projection = problem.projection(target)
     pseudo, info = solve(projection, params.correction_options)
     displacement = projection.velocity(pseudo)

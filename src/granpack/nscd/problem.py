@@ -24,7 +24,9 @@ point α (frozen at the predicted configuration of the step)
   an overlap deeper than ``s_r`` is pushed back at a fraction β of its excess per step, at most at
   the speed ``v_r`` (β = 0: none, the plain velocity-level law); its slow tier, ``s_s < s_r`` and
   ``v_s << v_r``, pushes the overlaps between the two slops back at no more than ``v_s`` (``v_s`` 0:
-  none; a pile at rest, :mod:`granpack.settling`),
+  none; a pile at rest, :mod:`granpack.settling`); both slops are multiplied by the pair's slop
+  factor, its smaller grain's size over the largest grain's when the slops are scaled by the pair
+  (:func:`body_slop_scale`), else 1,
 
 - the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation),
 - the free velocities ``V_free`` ``(N + 1, 6)`` (world rows ``(v, ω^w)``, see
@@ -56,7 +58,8 @@ import numpy as np
 from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
 from granpack.contact.contacts import ContactSet
 
-__all__ = ["ContactProblem", "assemble", "tangent_frame", "NORMAL_WIDTH", "FRICTION_WIDTH"]
+__all__ = ["ContactProblem", "assemble", "body_slop_scale", "pair_slop_scale", "tangent_frame", "NORMAL_WIDTH",
+           "FRICTION_WIDTH"]
 
 # normal_data columns
 N0, AIN, AJN, KIN, KJN, IMI, IMJ, INVW, WNN = 0, 3, 6, 9, 12, 15, 16, 17, 18
@@ -130,7 +133,7 @@ def _recovery_push(excess, rate, speed, h):
 def _assemble_parallel(
     chunks, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
     body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
-    slow_slop, slow_speed,
+    slow_slop, slow_speed, slop_scale,
 ):
     """Numba: :func:`_assemble_kernel` over ``chunks`` consecutive ranges of manifolds at once (the
     manifolds write disjoint rows, so the result does not depend on ``chunks``)."""
@@ -139,7 +142,7 @@ def _assemble_parallel(
         _assemble_kernel(
             n * c // chunks, n * (c + 1) // chunks, body_i, body_j, shift, normal, point_start, point, gap, x,
             inv_mass, inv_iw, v_start, h, restitution, mu, body, data, offset, tangent, lever_i, lever_j, fdata,
-            with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed,
+            with_friction, recovery_slop, recovery_rate, recovery_speed, slow_slop, slow_speed, slop_scale,
         )
 
 
@@ -147,7 +150,7 @@ def _assemble_parallel(
 def _assemble_kernel(
     m0, m1, body_i, body_j, shift, normal, point_start, point, gap, x, inv_mass, inv_iw, v_start, h, restitution, mu,
     body, data, offset, tangent, lever_i, lever_j, fdata, with_friction, recovery_slop, recovery_rate, recovery_speed,
-    slow_slop, slow_speed,
+    slow_slop, slow_speed, slop_scale,
 ):
     """Numba: the rows of the points of manifolds ``m0 <= m < m1`` (see :func:`assemble`)."""
     wall = x.shape[0]
@@ -159,6 +162,7 @@ def _assemble_kernel(
     for m in range(m0, m1):
         i = body_i[m]
         j = body_j[m] if body_j[m] >= 0 else wall
+        scale = min(slop_scale[i], slop_scale[j])
         n[0], n[1], n[2] = normal[m, 0], normal[m, 1], normal[m, 2]
         t[0], t[1], t[2], s[0], s[1], s[2] = _tangent_nb(n[0], n[1], n[2])
         for k in range(point_start[m], point_start[m + 1]):
@@ -191,8 +195,8 @@ def _assemble_kernel(
                 u0 += cin0 * v_start[i, 3] + cin1 * v_start[i, 4] + cin2 * v_start[i, 5]
                 u0 -= cjn0 * v_start[j, 3] + cjn1 * v_start[j, 4] + cjn2 * v_start[j, 5]
                 offset[k] = restitution * min(0.0, u0)
-                offset[k] -= max(_recovery_push(-gap[k] - recovery_slop, recovery_rate, recovery_speed, h),
-                                 _recovery_push(-gap[k] - slow_slop, recovery_rate, slow_speed, h))
+                offset[k] -= max(_recovery_push(-gap[k] - recovery_slop * scale, recovery_rate, recovery_speed, h),
+                                 _recovery_push(-gap[k] - slow_slop * scale, recovery_rate, slow_speed, h))
             if with_friction:
                 f = fdata[k]
                 f[T0], f[T0 + 1], f[T0 + 2] = t[0], t[1], t[2]
@@ -403,6 +407,32 @@ class ContactProblem:
         )
 
 
+def body_slop_scale(radius: np.ndarray) -> np.ndarray:
+    """``(N + 1,)`` the factor of each body's overlap slops when they are scaled by the pair
+    (``overlap.slop_scale = "pair"``): its circumscribed radius over the largest one, 1 for the wall
+    (row N), so that a pair's factor, the smaller of its two, is its smaller grain's size in units
+    of the largest grain's.
+
+    Why: a slop in d bounds every pair's overlap alike, so the overlaps of the small grains of a
+    wide grading are deeper relative to their size, by the size ratio, than those of the large ones.
+
+    Args:
+        radius: ``(N,)`` circumscribed radius of each grain, d.
+    """
+    radius = np.asarray(radius, dtype=np.float64)
+    scale = np.ones(len(radius) + 1)
+    if len(radius):
+        scale[:-1] = radius / radius.max()
+    return scale
+
+
+def pair_slop_scale(body_i: np.ndarray, body_j: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """``(M,)`` the slop factor of each pair ``(body_i, body_j)`` (``body_j < 0``: a wall), the smaller
+    of the two bodies' factors in ``scale`` (:func:`body_slop_scale`)."""
+    body_j = np.where(np.asarray(body_j) >= 0, body_j, len(scale) - 1)
+    return np.minimum(scale[np.asarray(body_i)], scale[body_j])
+
+
 def assemble(
     contacts: ContactSet,
     position: np.ndarray,
@@ -421,6 +451,7 @@ def assemble(
     recovery_speed: float = 0.0,
     slow_recovery_slop: float = 0.0,
     slow_recovery_speed: float = 0.0,
+    slop_scale: np.ndarray | None = None,
 ) -> ContactProblem:
     """Build the contact problem of a step from the detected contacts.
 
@@ -440,6 +471,8 @@ def assemble(
             overlap recovery (module docstring); ``recovery_rate`` 0: none.
         slow_recovery_slop, slow_recovery_speed: ``s_s`` (d) and ``v_s`` (sqrt(g d)) of its slow
             tier (module docstring); ``v_s`` 0: none.
+        slop_scale: ``(N + 1,)`` a factor per body (:func:`body_slop_scale`); a pair's slops are both
+            slops times the smaller factor of its two bodies. ``None``: 1 for all, the slops as given.
         side: ``(N + 1,)`` 0 or 1 per body, the two parts of the pile a solver may sweep in
             parallel (:mod:`granpack.nscd.nlgs`), or ``None``.
 
@@ -484,6 +517,7 @@ def assemble(
         float(recovery_speed),
         float(slow_recovery_slop),
         float(slow_recovery_speed),
+        np.ones(len(inv_mass)) if slop_scale is None else np.ascontiguousarray(slop_scale, dtype=np.float64),
     )
     if initial_impulse is None:
         initial_impulse = np.zeros((p, 3))
