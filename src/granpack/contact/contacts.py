@@ -2,10 +2,15 @@
 
 Conventions (owned here):
 
-- A manifold couples a **candidate** body ``i`` and an **antagonist** ``j`` (``j = -1`` is the
-  bottom wall). The antagonist is used through its periodic image ``x_j + shift``.
+- A manifold couples a **candidate** body ``i`` and an **antagonist** ``j``: a grain ``j >= 0``,
+  used through its periodic image ``x_j + shift``, or a wall ``j < 0`` (:data:`WALL_IDS`, the
+  container's of :mod:`granpack.box`): -1 the floor z = 0 (:data:`WALL`), -2 to -5 the box's walls
+  x = 0, x = L, y = 0, y = L, -6 the cylinder. A grain has at most one manifold per other grain
+  and per plane wall; against the cylinder a polyhedron has one manifold per vertex within the
+  alert distance, each with its own (radial) normal.
 - The unit ``normal`` points **from j towards i** (i moves along +normal to separate); for the
-  wall it is +z.
+  floor it is +z, for a side wall its inward normal, for the cylinder the inward radial
+  direction at the point.
 - Each manifold has one or more points (rows ``point_start[m]:point_start[m+1]``), each with a
   world position (the midpoint between the two surfaces) and its own ``gap`` (> 0 open,
   < 0 interpenetration), in d.
@@ -26,10 +31,19 @@ import numpy as np
 
 from granpack._numba import jit
 
-__all__ = ["ContactSet", "SIMPLE", "DOUBLE", "TRIPLE", "WALL", "contact_types", "manifold_type_nb"]
+__all__ = ["ContactSet", "SIMPLE", "DOUBLE", "TRIPLE", "WALL", "WALL_IDS", "WALL_CYLINDER", "contact_types",
+           "manifold_type_nb"]
 
 SIMPLE, DOUBLE, TRIPLE = 1, 2, 3
+#: the floor z = 0, antagonist of the grains that rest on it
 WALL = -1
+#: the box's walls x = 0, x = L, y = 0, y = L (``Box.container == "box"``)
+WALL_X_LO, WALL_X_HI, WALL_Y_LO, WALL_Y_HI = -2, -3, -4, -5
+#: the cylinder's wall (``Box.container == "cylinder"``)
+WALL_CYLINDER = -6
+#: every wall id and its name (outputs, analysis)
+WALL_IDS = {WALL: "floor", WALL_X_LO: "x = 0", WALL_X_HI: "x = L", WALL_Y_LO: "y = 0", WALL_Y_HI: "y = L",
+            WALL_CYLINDER: "cylinder"}
 
 
 @dataclass
@@ -38,7 +52,7 @@ class ContactSet:
 
     Attributes:
         body_i: ``(M,)`` int64 candidate body.
-        body_j: ``(M,)`` int64 antagonist body, ``-1`` for the wall.
+        body_j: ``(M,)`` int64 antagonist body, or the wall's id (< 0, module docstring).
         shift: ``(M, 3)`` periodic image shift added to ``x_j``, d.
         normal: ``(M, 3)`` unit normal from j towards i.
         ctype: ``(M,)`` int64 geometric contact type 1/2/3 (rank of all the points).

@@ -12,10 +12,12 @@ API:
   within ``alert``, i.e. narrow-phase tests) and ``n_builds`` describe the last call.
 
 Every pair with a gap (exact distance, or negative penetration depth) of at most ``alert`` gives
-one manifold: bodies ``i < j`` (``j = -1`` for the bottom wall), the image shift of ``j``, the
+one manifold: bodies ``i < j`` (``j < 0`` a wall of the cell, :mod:`granpack.contact.contacts`;
+a polyhedron has one manifold per vertex near a cylinder), the image shift of ``j`` (zero in a
+box or a cylinder, whose positions are never wrapped), the
 normal from ``j`` to ``i``, its points with their gaps (every vertex of a contact polygon), and
 the contact type 1/2/3 from the rank of the points (docs/method/contact-detection.md#contact-types). Manifolds are ordered by ``i``, then ``j`` with the
-wall first, independently of the Verlet state, so results do not depend on the skin.
+walls first (the floor, then the box's walls or the cylinder's vertices), independently of the Verlet state, so results do not depend on the skin.
 
 ``previous`` (the manifolds of the previous step, e.g. the solver's last ``ContactSet``) gives
 temporal hysteresis between polyhedra: a pair keeps the separating axis family (face of ``j``,
@@ -219,6 +221,7 @@ class Detector:
         box = state.box
         limit = 2.0 * (tables.d_max + alert + self.verlet.skin)
         if not (box.lx > limit and box.ly > limit):
+            # the cell grid is periodic for every container: with this bound it finds each pair once
             raise ValueError(
                 f"box {box.lx:g} x {box.ly:g} too small: periods must exceed 2 (d_max + alert + skin) = {limit:g}"
             )
@@ -232,7 +235,7 @@ class Detector:
         eps_f = self.eps_f if self.eps_f is not None else 1e-3 * tables.d_min
         pairs = CandidatePairs(self.verlet.pair_start, self.verlet.pair_j, self._pair_axis)
         args = (state.position, geo, tables.tab(state.kind), tables.bounds, tables.symmetric, pairs,
-                _previous_normals(previous, state.n), box.lx, box.ly, alert, _reach(reach, state.n, alert), eps_f,
+                _previous_normals(previous, state.n), box.lx, box.ly, box.code, alert, _reach(reach, state.n, alert), eps_f,
                 tables.max_points)
         bounds = _row_ranges(self.verlet.pair_start, self.threads)
         if len(bounds) == 2:

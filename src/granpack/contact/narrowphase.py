@@ -8,8 +8,12 @@ frame centred on the antagonist's image ``x_j + shift`` (called body A) with the
 
 Pair kinds (docs/method/contact-detection.md):
 
-- sphere-sphere, sphere-wall: closed forms.
-- polyhedron-wall (plane z = 0): every vertex with ``z < alert`` is a point, gap ``z``.
+- sphere-sphere, sphere-wall: closed forms (a plane wall: the centre's height less the radius; the
+  cylinder: ``R - |c_xy| - r`` along the inward radial direction).
+- polyhedron-plane wall (the floor z = 0, a box's wall): every vertex at a height ``h < alert``
+  is a point, gap ``h``, the wall's normal.
+- polyhedron-cylinder: every vertex with ``R - |v_xy| < alert`` is a manifold of its own (one
+  point, gap ``R - |v_xy|``, the inward radial normal at the vertex), :func:`_walls`.
 - sphere-polyhedron: exact closest point of the polyhedron to the centre (GJK with a one-point
   set); centre inside: face of least depth.
 - polyhedron-polyhedron: separating-axis test
@@ -372,21 +376,121 @@ def _poly_sphere(a, rb, ox, oy, oz, geo, tab, alert, scr, one, pts, gp):
 
 
 @jit
-def _poly_wall(i, zc, geo, alert, pts, gp):
-    """Vertices of polyhedron ``i`` (centre height ``zc``, d) below ``alert`` (d); points relative to its centre.
+def _poly_plane(i, wx, wy, wz, hc, geo, alert, pts, gp):
+    """Vertices of polyhedron ``i`` within ``alert`` (d) of a plane wall of inward unit normal
+    ``w`` whose centre is at height ``hc`` (d) above it; points relative to its centre.
 
-    Each point lies midway between its vertex and the wall, gap the vertex height. Returns the
-    count; ``pts`` must have at least as many rows as the polyhedron has vertices.
+    A vertex ``v`` (body-to-world turned, relative to the centre) is at height
+    ``h = hc + w . v``; each point lies midway between its vertex and the wall, ``v - h w / 2``,
+    gap ``h``. Returns the count; ``pts`` must have at least as many rows as the polyhedron has
+    vertices. The floor is ``w = e_z``, ``hc = z_i``.
     """
     rv = geo.vertices
     cnt = 0
     for k in range(geo.vertex_start[i], geo.vertex_start[i + 1]):
-        z = zc + rv[k, 2]
+        z = hc + wx * rv[k, 0] + wy * rv[k, 1] + wz * rv[k, 2]
         if z < alert:
-            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = rv[k, 0], rv[k, 1], rv[k, 2] - 0.5 * z
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = (rv[k, 0] - 0.5 * z * wx, rv[k, 1] - 0.5 * z * wy,
+                                                     rv[k, 2] - 0.5 * z * wz)
             gp[cnt] = z
             cnt += 1
     return cnt
+
+
+@jit(inline="always")
+def _box_wall(w, xi, yi, lx, ly):
+    """Inward unit normal ``(wx, wy)`` of the box's wall ``w`` (0: x = 0, 1: x = lx, 2: y = 0,
+    3: y = ly; wall id ``-2 - w``) and the height above it of the centre ``(xi, yi)``, d."""
+    if w == 0:
+        return 1.0, 0.0, xi
+    if w == 1:
+        return -1.0, 0.0, lx - xi
+    if w == 2:
+        return 0.0, 1.0, yi
+    return 0.0, -1.0, ly - yi
+
+
+@jit(inline="always")
+def _emit(i, j, sx, sy, nx, ny, nz, cx, cy, cz, pts, gp, cnt, eps_f, eps_pt, body_i, body_j, shift, normal, ctype,
+          pstart, point, gap, m, npt):
+    """Write manifold ``m`` of bodies ``i``, ``j`` (image shift ``(sx, sy, 0)``, normal ``n``) from
+    its ``cnt`` points ``pts`` relative to ``c`` (d) and gaps ``gp`` (points closer than ``eps_pt``
+    merged, the type from their rank within ``eps_f``); returns the next ``(m, npt)``."""
+    cnt = _merge_points(pts, gp, cnt, eps_pt)
+    body_i[m], body_j[m] = i, j
+    shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
+    normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
+    ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
+    for k in range(cnt):
+        point[npt, 0], point[npt, 1], point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
+        gap[npt] = gp[k]
+        npt += 1
+    m += 1
+    pstart[m] = npt
+    return m, npt
+
+
+@jit
+def _walls(i, xi, yi, zi, ri, sphere, container, lx, ly, aw, geo, eps_f, eps_pt, pts, gp, out, m, npt):
+    """The manifolds of body ``i`` (centre ``x_i``, circumscribed radius ``ri``, d; ``sphere``:
+    a sphere of that radius, else a polyhedron) with the walls within ``aw`` (d), written to the
+    :class:`_Manifolds` ``out`` from row ``m``, point ``npt``: the floor (-1), then the box's walls
+    (``container`` 1: -2 to -5, planes, as the floor with their own normal) or the cylinder's
+    (``container`` 2: -6, axis ``(lx/2, ly/2)``, inside radius ``R = lx/2``). Returns the next
+    ``(m, npt)``.
+
+    Cylinder: a sphere's gap is ``R - |c_xy| - r`` along the inward radial normal; a polyhedron
+    touches it by vertices only (``|v_xy|`` is convex), each vertex ``v`` within ``aw`` its own
+    manifold of one point, gap ``R - |v_xy|``, normal ``-v_xy / |v_xy|``, the point midway between
+    the vertex and the wall (docs/design-notes.md: why one manifold per vertex).
+    """
+    bi, bj, sh, nr, ct, ps, po, ga = out.body_i, out.body_j, out.shift, out.normal, out.ctype, out.point_start, \
+        out.point, out.gap
+    for w in range(-1, 4 if container == 1 else 0):
+        if w < 0:
+            wx, wy, wz, hc = 0.0, 0.0, 1.0, zi
+        else:
+            wx, wy, hc = _box_wall(w, xi, yi, lx, ly)
+            wz = 0.0
+        if hc - ri >= aw:
+            continue
+        if w < 0 and sphere:
+            g = zi - ri
+            pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
+            gp[0] = g
+            cnt = 1
+        elif sphere:
+            g = hc - ri
+            pts[0, 0], pts[0, 1], pts[0, 2] = -(ri + 0.5 * g) * wx, -(ri + 0.5 * g) * wy, 0.0
+            gp[0] = g
+            cnt = 1
+        else:
+            cnt = _poly_plane(i, wx, wy, wz, hc, geo, aw, pts, gp)
+        if cnt > 0:
+            m, npt = _emit(i, -2 - w if w >= 0 else -1, 0.0, 0.0, wx, wy, wz, xi, yi, zi, pts, gp, cnt, eps_f, eps_pt,
+                           bi, bj, sh, nr, ct, ps, po, ga, m, npt)
+    if container != 2:
+        return m, npt
+    radius = 0.5 * lx
+    dx, dy = xi - 0.5 * lx, yi - 0.5 * ly
+    if radius - math.sqrt(dx * dx + dy * dy) - ri >= aw:
+        return m, npt
+    rv = geo.vertices
+    k0, k1 = (0, 1) if sphere else (geo.vertex_start[i], geo.vertex_start[i + 1])
+    for k in range(k0, k1):
+        vx, vy, vz = (0.0, 0.0, 0.0) if sphere else (rv[k, 0], rv[k, 1], rv[k, 2])
+        px, py = dx + vx, dy + vy
+        rho = math.sqrt(px * px + py * py)
+        ux, uy = (px / rho, py / rho) if rho > 0.0 else (1.0, 0.0)
+        g = radius - rho - (ri if sphere else 0.0)
+        if g >= aw:
+            continue
+        reach = (ri if sphere else 0.0) + 0.5 * g
+        pts[0, 0], pts[0, 1], pts[0, 2] = vx + reach * ux, vy + reach * uy, vz
+        gp[0] = g
+        m, npt = _emit(i, -6, 0.0, 0.0, -ux, -uy, 0.0, xi, yi, zi, pts, gp, 1, eps_f, eps_pt, bi, bj, sh, nr, ct, ps,
+                       po, ga, m, npt)
+    return m, npt
 
 
 @jit
@@ -434,8 +538,8 @@ def _general_tables(tab, axis_extent, edge_arc, n_kinds):
 
 
 @jit
-def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly, alert, reach, eps_f, max_points, i0,
-                 i1):
+def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly, container, alert, reach, eps_f,
+                 max_points, i0, i1):
     """Contact manifolds of the candidate pairs and wall pairs of the bodies ``i0 <= i < i1``.
 
     Rows are independent (a pair belongs to its row ``i``, the previous normals are looked up by
@@ -450,9 +554,12 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
         pairs: the :class:`CandidatePairs` (``j > i``); their ``axis`` codes are read and updated
             in rows ``i0:i1`` (:func:`~granpack.contact.separating_axes._sat`).
         previous: the previous step's :class:`PreviousNormals` (temporal axis hysteresis).
-        lx, ly: periods, d; alert: alert distance, d, the largest gap reported.
+        lx, ly: periods, d (a container's inside side, or the cylinder's diameter twice);
+        container: 0 periodic, 1 box, 2 cylinder (:class:`granpack.box.Box` ``code``; a container
+            has no image shifts and walls of its own, :func:`_walls`).
+        alert: alert distance, d, the largest gap reported.
         reach: ``(N,)`` per body, d: pair ``(i, j)`` reports gaps up to ``min(alert, reach_i +
-            reach_j)``, the wall pair of ``i`` up to ``min(alert, 2 reach_i)``.
+            reach_j)``, the wall pairs of ``i`` up to ``min(alert, 2 reach_i)``.
         eps_f: feature band / rank tolerance, d.
         max_points: scratch rows, at least the largest vertex count and twice the largest face
             size plus one; i0, i1: the rows computed (``0, N`` for all).
@@ -460,10 +567,11 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
     Returns:
         ``(body_i, body_j, shift, normal, ctype, point_start, point, gap, n_tested)``: the
         :class:`~granpack.contact.contacts.ContactSet` arrays, ordered by ``i`` then ``j`` (the
-        wall, ``j = -1``, first), and the number of pairs whose bounding spheres overlap within
+        walls first: the floor, ``j = -1``, then the box's or the cylinder's), and the number of pairs whose bounding spheres overlap within
         ``alert`` (narrow-phase tests).
     """
-    cap = pairs.start[i1] - pairs.start[i0] + (i1 - i0)
+    per_body = 1 if container == 0 else (5 if container == 1 else 1 + max_points)  # wall manifolds
+    cap = pairs.start[i1] - pairs.start[i0] + per_body * (i1 - i0)
     out = _manifold_buffers(cap, max_points)
     body_i, body_j, shift, normal, ctype = out.body_i, out.body_j, out.shift, out.normal, out.ctype
     pstart, point, gap = out.point_start, out.point, out.gap
@@ -484,72 +592,53 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
         ki = kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
-        # q = pair_start[i] - 1 stands for the wall z = 0 (j = -1), whose manifold comes first
-        for q in range(pair_start[i] - 1, pair_start[i + 1]):
-            if q < pair_start[i]:
-                aw = min(alert, 2.0 * reach[i])
-                if zi - ri >= aw:
-                    continue
-                if is_sphere[ki]:
-                    g = zi - ri
-                    pts[0, 0], pts[0, 1], pts[0, 2] = 0.0, 0.0, 0.5 * g - zi
-                    gp[0] = g
-                    cnt = 1
-                else:
-                    cnt = _poly_wall(i, zi, geo, aw, pts, gp)
-                j, sx, sy, nx, ny, nz, cx, cy, cz = -1, 0.0, 0.0, 0.0, 0.0, 1.0, xi, yi, zi
-            else:
-                j = pair_j[q]
-                kj = kind[j]
-                dx = xi - position[j, 0]
-                dy = yi - position[j, 1]
+        m, npt = _walls(i, xi, yi, zi, ri, is_sphere[ki], container, lx, ly, min(alert, 2.0 * reach[i]), geo, eps_f,
+                        eps_pt, pts, gp, out, m, npt)
+        for q in range(pair_start[i], pair_start[i + 1]):
+            j = pair_j[q]
+            kj = kind[j]
+            dx = xi - position[j, 0]
+            dy = yi - position[j, 1]
+            if container == 0:
                 sx = lx * math.floor(dx / lx + 0.5)
                 sy = ly * math.floor(dy / ly + 0.5)
-                ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
-                a = min(alert, reach[i] + reach[j])
-                rr = ri + radius[kj] + a
-                if ox * ox + oy * oy + oz * oz >= rr * rr:
+            else:
+                sx = sy = 0.0
+            ox, oy, oz = dx - sx, dy - sy, zi - position[j, 2]
+            a = min(alert, reach[i] + reach[j])
+            rr = ri + radius[kj] + a
+            if ox * ox + oy * oy + oz * oz >= rr * rr:
+                continue
+            tested += 1
+            if is_sphere[ki] and is_sphere[kj]:
+                d = math.sqrt(ox * ox + oy * oy + oz * oz)
+                g = d - ri - radius[kj]
+                if g > a:
                     continue
-                tested += 1
-                if is_sphere[ki] and is_sphere[kj]:
-                    d = math.sqrt(ox * ox + oy * oy + oz * oz)
-                    g = d - ri - radius[kj]
-                    if g > a:
-                        continue
-                    nx, ny, nz = (ox / d, oy / d, oz / d) if d > 0.0 else (0.0, 0.0, 1.0)
-                    c = radius[kj] + 0.5 * g
-                    pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
-                    gp[0] = g
-                    cnt = 1
-                elif is_sphere[kj]:
-                    cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
-                elif is_sphere[ki]:
-                    cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+                nx, ny, nz = (ox / d, oy / d, oz / d) if d > 0.0 else (0.0, 0.0, 1.0)
+                c = radius[kj] + 0.5 * g
+                pts[0, 0], pts[0, 1], pts[0, 2] = c * nx, c * ny, c * nz
+                gp[0] = g
+                cnt = 1
+            elif is_sphere[kj]:
+                cnt, nx, ny, nz = _sphere_poly(radius[kj], i, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+            elif is_sphere[ki]:
+                cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
+            else:
+                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
+                           _KEEP_BAND * eps_f, X, Y, pair_axis[q])
+                pair_axis[q] = sat.axis
+                if sat.far:
+                    continue
+                while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
+                    pp += 1
+                if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
+                    hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
                 else:
-                    sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
-                               _KEEP_BAND * eps_f, X, Y, pair_axis[q])
-                    pair_axis[q] = sat.axis
-                    if sat.far:
-                        continue
-                    while pp < nprev and (prev_i[pp] < i or (prev_i[pp] == i and prev_j[pp] < j)):
-                        pp += 1
-                    if pp < nprev and prev_i[pp] == i and prev_j[pp] == j:
-                        hx, hy, hz = prev_n[pp, 0], prev_n[pp, 1], prev_n[pp, 2]
-                    else:
-                        hx, hy, hz = 0.0, 0.0, 0.0
-                    cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat, geo, tab, a, eps_f, scr, pts, gp)
-                cx, cy, cz = position[j, 0] + sx, position[j, 1] + sy, position[j, 2]
+                    hx, hy, hz = 0.0, 0.0, 0.0
+                cnt, nx, ny, nz = poly_poly(j, i, ox, oy, oz, hx, hy, hz, sat, geo, tab, a, eps_f, scr, pts, gp)
             if cnt == 0:
                 continue
-            cnt = _merge_points(pts, gp, cnt, eps_pt)
-            body_i[m], body_j[m] = i, j
-            shift[m, 0], shift[m, 1], shift[m, 2] = sx, sy, 0.0
-            normal[m, 0], normal[m, 1], normal[m, 2] = nx, ny, nz
-            ctype[m] = manifold_type_nb(pts, cnt, nx, ny, nz, eps_f)
-            for k in range(cnt):
-                point[npt, 0], point[npt, 1], point[npt, 2] = cx + pts[k, 0], cy + pts[k, 1], cz + pts[k, 2]
-                gap[npt] = gp[k]
-                npt += 1
-            m += 1
-            pstart[m] = npt
+            m, npt = _emit(i, j, sx, sy, nx, ny, nz, position[j, 0] + sx, position[j, 1] + sy, position[j, 2], pts, gp,
+                           cnt, eps_f, eps_pt, body_i, body_j, shift, normal, ctype, pstart, point, gap, m, npt)
     return _trimmed(out, m, npt, tested)

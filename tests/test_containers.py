@@ -1,0 +1,214 @@
+"""Containers (box and cylinder): wall contacts on hand-built configurations with exact answers,
+and the dynamics of grains held by them.
+
+Expected gaps, normals and points come from the world vertices and the container's geometry
+(a plane's height, ``R - |v_xy|`` for the cylinder), computed here in plain numpy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from granpack.box import Box
+from granpack.contact import SIMPLE, TRIPLE, ContactSet, detect
+from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix
+from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
+from granpack.state import ParticleState
+
+ALERT = 0.02
+L = 4.0
+AXIS = np.array([0.5 * L, 0.5 * L])
+R_CYL = 0.5 * L
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+#: inward unit normal of each of the box's walls, by wall id
+BOX_WALLS = {-2: (1.0, 0.0), -3: (-1.0, 0.0), -4: (0.0, 1.0), -5: (0.0, -1.0)}
+
+
+def state_of(shapes, kinds, positions, quaternions, container, lateral=L) -> ParticleState:
+    n = len(kinds)
+    return ParticleState(box=Box.square(lateral, container), shapes=ShapeTable.from_shapes(shapes),
+                         kind=np.asarray(kinds, np.int64), population=np.zeros(n, np.int64),
+                         position=np.asarray(positions, float).reshape(n, 3),
+                         quaternion=np.asarray(quaternions, float).reshape(n, 4))
+
+
+def manifolds(cs: ContactSet) -> list[dict]:
+    out = []
+    for m in range(cs.n_manifolds):
+        s = slice(cs.point_start[m], cs.point_start[m + 1])
+        out.append(dict(i=int(cs.body_i[m]), j=int(cs.body_j[m]), normal=cs.normal[m], ctype=int(cs.ctype[m]),
+                        points=cs.point[s], gaps=cs.gap[s], shift=cs.shift[m]))
+    return out
+
+
+def world_vertices(shape, q, x) -> np.ndarray:
+    return np.asarray(x) + shape.vertices @ quat_to_matrix(np.asarray(q)).T
+
+
+def wall_height(wall: int, p: np.ndarray) -> np.ndarray:
+    """Height of points ``p`` (..., 3) above the box's wall ``wall``, d."""
+    return {-2: p[..., 0], -3: L - p[..., 0], -4: p[..., 1], -5: L - p[..., 1]}[wall]
+
+
+# ---------------------------------------------------------------------------------------------
+# the box
+
+
+@pytest.mark.parametrize("wall", sorted(BOX_WALLS))
+@pytest.mark.parametrize("gap", [0.01, 0.0, -0.004])
+def test_sphere_against_each_box_wall(wall, gap):
+    r = 0.5
+    wx, wy = BOX_WALLS[wall]
+    centre = np.array([0.5 * L, 0.5 * L, 1.7])
+    # the centre moved towards the wall until its gap is `gap`
+    centre[:2] -= (0.5 * L - r - gap) * np.array([wx, wy])
+    ms = manifolds(detect(state_of([Sphere(2 * r)], [0], [centre], [IDENTITY], "box"), ALERT))
+    assert [m["j"] for m in ms] == [wall]
+    m = ms[0]
+    assert m["ctype"] == SIMPLE
+    np.testing.assert_allclose(m["normal"], [wx, wy, 0.0], atol=1e-12)
+    np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+    np.testing.assert_allclose(m["points"][0], centre - (r + 0.5 * gap) * np.array([wx, wy, 0.0]), atol=1e-12)
+    np.testing.assert_allclose(m["shift"], 0.0)
+
+
+@pytest.mark.parametrize("corner", [(-2, -4), (-2, -5), (-3, -4), (-3, -5)])
+def test_sphere_in_a_box_corner_touches_the_floor_and_two_walls(corner):
+    r, gaps = 0.5, {-1: 0.003, corner[0]: -0.002, corner[1]: 0.007}
+    centre = np.zeros(3)
+    centre[2] = r + gaps[-1]
+    for wall in corner:
+        wx, wy = BOX_WALLS[wall]
+        axis = 0 if wx else 1
+        inward = wx + wy
+        centre[axis] = r + gaps[wall] if inward > 0 else L - r - gaps[wall]
+    ms = manifolds(detect(state_of([Sphere(2 * r)], [0], [centre], [IDENTITY], "box"), ALERT))
+    assert [m["j"] for m in ms] == sorted(gaps, reverse=True)  # the floor, then the walls by id
+    for m in ms:
+        np.testing.assert_allclose(m["gaps"], [gaps[m["j"]]], atol=1e-12)
+        normal = [0.0, 0.0, 1.0] if m["j"] == -1 else [*BOX_WALLS[m["j"]], 0.0]
+        np.testing.assert_allclose(m["normal"], normal, atol=1e-12)
+        np.testing.assert_allclose(m["points"][0], centre - (r + 0.5 * gaps[m["j"]]) * np.asarray(normal), atol=1e-12)
+
+
+@pytest.mark.parametrize("wall", sorted(BOX_WALLS))
+@pytest.mark.parametrize("gap", [0.004, -0.002])
+def test_pinacoid_face_to_face_with_a_box_wall(wall, gap):
+    sh = Pinacoid.from_size(1.0, 2.0, 3.0)
+    f = int(np.argmax([sh.face_offsets[k] for k in range(len(sh.faces))]))  # a large face: the farthest
+    wx, wy = BOX_WALLS[wall]
+    outward = -np.array([wx, wy, 0.0])
+    # the smallest rotation taking the face's normal onto the wall's outward direction
+    n = sh.face_normals[f]
+    c = np.cross(n, outward)
+    q = quat_from_axis_angle(c, math.atan2(np.linalg.norm(c), n @ outward)) if np.linalg.norm(c) > 1e-12 else \
+        (IDENTITY if n @ outward > 0 else quat_from_axis_angle([0.0, 0.0, 1.0], math.pi))
+    centre = np.array([0.5 * L, 0.5 * L, 2.0]) + (0.5 * L - sh.face_offsets[f] - gap) * outward
+    ms = manifolds(detect(state_of([sh], [0], [centre], [q], "box"), ALERT))
+    assert [m["j"] for m in ms] == [wall]
+    m = ms[0]
+    assert m["ctype"] == TRIPLE
+    np.testing.assert_allclose(m["normal"], -outward, atol=1e-12)
+    v = world_vertices(sh, q, centre)[sh.faces[f]]
+    assert len(m["gaps"]) == len(v)
+    np.testing.assert_allclose(m["gaps"], gap, atol=1e-12)
+    np.testing.assert_allclose(wall_height(wall, v), gap, atol=1e-12)
+    expected = v + 0.5 * gap * outward
+    assert np.linalg.norm(m["points"][:, None] - expected[None], axis=2).min(axis=1).max() < 1e-12
+
+
+def test_a_box_has_no_periodic_images():
+    r = 0.5
+    positions = [[r + 0.01, 2.0, 1.5], [L - r - 0.01, 2.0, 1.5]]  # touching across x = 0 if periodic
+    periodic = detect(state_of([Sphere(2 * r)], [0, 0], positions, [IDENTITY, IDENTITY], "periodic"), ALERT)
+    assert [(int(i), int(j)) for i, j in zip(periodic.body_i, periodic.body_j)] == [(0, 1)]
+    boxed = detect(state_of([Sphere(2 * r)], [0, 0], positions, [IDENTITY, IDENTITY], "box"), ALERT)
+    assert sorted((int(i), int(j)) for i, j in zip(boxed.body_i, boxed.body_j)) == [(0, -2), (1, -3)]
+
+
+# ---------------------------------------------------------------------------------------------
+# the cylinder
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.7, 2.5, -1.9])
+@pytest.mark.parametrize("gap", [0.012, 0.0, -0.003])
+def test_sphere_in_the_cylinder(angle, gap):
+    r = 0.5
+    u = np.array([math.cos(angle), math.sin(angle), 0.0])
+    centre = np.array([*AXIS, 0.9]) + (R_CYL - r - gap) * u
+    ms = manifolds(detect(state_of([Sphere(2 * r)], [0], [centre], [IDENTITY], "cylinder"), ALERT))
+    assert [m["j"] for m in ms] == [-6]
+    m = ms[0]
+    assert m["ctype"] == SIMPLE
+    np.testing.assert_allclose(m["normal"], -u, atol=1e-12)
+    np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+    np.testing.assert_allclose(m["points"][0], centre + (r + 0.5 * gap) * u, atol=1e-12)
+    # the point lies midway between the sphere and the cylinder
+    assert abs(np.linalg.norm(m["points"][0][:2] - AXIS) - (R_CYL - 0.5 * gap)) < 1e-12
+
+
+def _cylinder_case(shape, q, angle, gap):
+    """The grain turned by ``q``, moved from the axis along the direction ``angle`` until its
+    farthest vertex from the axis has the gap ``gap``; returns its centre and its world vertices.
+
+    A vertex at ``(a, b)`` along and across ``u`` (relative to the centre) is at ``R - gap`` from
+    the axis when the centre is at ``sqrt((R - gap)^2 - b^2) - a`` along ``u``: the least of these
+    over the vertices."""
+    u = np.array([math.cos(angle), math.sin(angle), 0.0])
+    across = np.array([-u[1], u[0], 0.0])
+    v = world_vertices(shape, q, np.zeros(3))
+    t = float(np.min(np.sqrt((R_CYL - gap) ** 2 - (v @ across) ** 2) - v @ u))
+    centre = np.array([*AXIS, 1.2]) + t * u
+    return centre, v + centre
+
+
+def _edge_out(shape) -> np.ndarray:
+    """A body-frame turn that puts a horizontal edge of ``shape`` outermost along +x (its two
+    vertices at the largest x, equal y magnitude): the edge's midpoint direction onto +x, the edge
+    along y."""
+    a, b = shape.edges[0]
+    va, vb = shape.vertices[a], shape.vertices[b]
+    mid, along = 0.5 * (va + vb), vb - va
+    along = along / np.linalg.norm(along)
+    mid = mid - (mid @ along) * along
+    frame = np.array([mid / np.linalg.norm(mid), along, np.cross(mid / np.linalg.norm(mid), along)])
+    # rows of `frame` are the body directions that go to x, y, z: the rotation body -> world is `frame`
+    x, y, z, w = Rotation.from_matrix(frame).as_quat()
+    return np.array([w, x, y, z])
+
+
+def _vertex_out(shape) -> np.ndarray:
+    """A turn that puts vertex 0 of ``shape`` outermost along +x."""
+    v = shape.vertices[0] / np.linalg.norm(shape.vertices[0])
+    c = np.cross(v, [1.0, 0.0, 0.0])
+    if np.linalg.norm(c) < 1e-12:
+        return IDENTITY if v[0] > 0 else quat_from_axis_angle([0.0, 0.0, 1.0], math.pi)
+    return quat_from_axis_angle(c, math.atan2(np.linalg.norm(c), v[0]))
+
+
+@pytest.mark.parametrize("name", ["cube", "octahedron"])
+@pytest.mark.parametrize("touch, count", [("vertex", 1), ("edge", 2)])
+@pytest.mark.parametrize("angle", [0.0, 1.1, -2.6])
+@pytest.mark.parametrize("gap", [0.006, -0.002])
+def test_polyhedron_touching_the_cylinder(name, touch, count, angle, gap):
+    sh = platonic(name, 1.0)
+    body = _vertex_out(sh) if touch == "vertex" else _edge_out(sh)
+    q = quat_multiply(quat_from_axis_angle([0.0, 0.0, 1.0], angle), body)
+    centre, v = _cylinder_case(sh, q, angle, gap)
+    rho = np.linalg.norm(v[:, :2] - AXIS, axis=1)
+    expected = np.flatnonzero(R_CYL - rho < ALERT)
+    ms = [m for m in manifolds(detect(state_of([sh], [0], [centre], [q], "cylinder"), ALERT)) if m["j"] == -6]
+    assert len(expected) == count and len(ms) == count
+    for m in ms:
+        assert m["ctype"] == SIMPLE and len(m["gaps"]) == 1
+        # the manifold's vertex: the one its point lies beside
+        k = expected[np.argmin(np.linalg.norm(v[expected] - m["points"][0], axis=1))]
+        u = np.array([*((v[k, :2] - AXIS) / rho[k]), 0.0])
+        np.testing.assert_allclose(m["gaps"], [R_CYL - rho[k]], atol=1e-12)
+        np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
+        np.testing.assert_allclose(m["normal"], -u, atol=1e-12)
+        np.testing.assert_allclose(m["points"][0], v[k] + 0.5 * gap * u, atol=1e-12)
