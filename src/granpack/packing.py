@@ -9,12 +9,14 @@ analyses use the pair resultant, never the split between the points of a manifol
 
 from __future__ import annotations
 
+import tomllib
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from granpack.box import Box
 from granpack.contact.contacts import WALL, ContactSet
+from granpack.errors import InputError
 from granpack.state import ParticleState
 
 __all__ = ["Packing"]
@@ -31,7 +33,8 @@ class Packing:
         time_step: the step ``h`` of the last solve, sqrt(d/g); forces are ``impulse / h``.
         population_names: one name per population (``state.population`` indexes it).
         metadata: free-form run information (``seed``, ``config`` TOML text, ``version``,
-            ``status``, ``gravity`` ...); JSON-serialisable.
+            ``status``, ``gravity`` ...); JSON-serialisable. The contact law's friction is read
+            from ``config`` (:attr:`friction`).
     """
 
     state: ParticleState
@@ -65,6 +68,30 @@ class Packing:
     def gravity(self) -> float:
         """Magnitude of gravity (``metadata["gravity"]``, default 1 in the units of d and sqrt(d/g))."""
         return float(self.metadata.get("gravity", 1.0))
+
+    @property
+    def friction(self) -> float:
+        """Coulomb friction coefficient μ of the contacts (dimensionless, >= 0; 0: frictionless).
+
+        The run's ``solver.friction``, read from the resolved config text in ``metadata["config"]``;
+        0 when the metadata holds no config (a packing built by other means) or the config no
+        ``[solver]`` friction (its default). The one place analysis learns whether a packing is
+        frictional: :class:`~granpack.analysis.coordination.Coordination` applies the frictional
+        rules when it is positive, unless told another μ.
+
+        Raises:
+            InputError: ``metadata["config"]`` is not TOML, or its friction not a number >= 0.
+        """
+        text = self.metadata.get("config")
+        if not text:
+            return 0.0
+        try:
+            mu = tomllib.loads(text).get("solver", {}).get("friction", 0.0)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"the packing's config (metadata) is not TOML ({exc})") from None
+        if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not mu >= 0:
+            raise InputError(f"the packing's config (metadata) has solver.friction = {mu!r}, not a number >= 0")
+        return float(mu)
 
     @property
     def seed(self):

@@ -24,15 +24,44 @@ detection default). Three subsets are classified:
 - ``geometric``: the detection type ``ContactSet.ctype``, the rank of every point within the alert
   distance (it overcounts nearly parallel faces; kept for comparison).
 
-Rattlers: a bulk grain is a rattler when its force-bearing constraints are fewer than ``f + 1`` —
-fewer than 4 contacts for a sphere (``f = 3``), fewer than 7 constraints ``n_s + 2 n_d + 3 n_t``
-for a polyhedron (``f = 6``). Rattlers are removed with their contacts and the rule is applied
-again until no bulk grain is removed. Grains outside the bulk are never removed (they act as a
-boundary, like the wall, so that the open surface does not erode the backbone). The rule depends
-on the types, so each classification has its own backbone. The main figures are those of the
-backbone (rattlers and their contacts removed); ``with_rattlers`` gives the same figures over all
-bulk grains. Isostaticity of rigid frictionless grains predicts ``N = 6`` (spheres) and
-``Nc = 12`` (polyhedra) on the backbone.
+Rattlers (frictionless rule, friction μ = 0): a bulk grain is a rattler when its force-bearing
+constraints are fewer than ``f + 1`` — fewer than 4 contacts for a sphere (``f = 3``: its rotations
+are free), fewer than 7 constraints ``n_s + 2 n_d + 3 n_t`` for a polyhedron (``f = 6``). Rattlers
+are removed with their contacts and the rule is applied again until no bulk grain is removed.
+Grains outside the bulk are never removed (they act as a boundary, like the wall, so that the open
+surface does not erode the backbone). The rule depends on the types, so each classification has
+its own backbone. The main figures are those of the backbone (rattlers and their contacts
+removed); ``with_rattlers`` gives the same figures over all bulk grains. Isostaticity of rigid
+frictionless grains predicts ``N = 6`` (spheres) and ``Nc = 12`` (polyhedra) on the backbone.
+
+**Frictional rule** (μ > 0: the packing's :attr:`~granpack.packing.Packing.friction`, the run's
+``solver.friction``, or the ``friction`` given). A force-bearing point then carries a force anywhere
+in its Coulomb cone, three components, and a sphere's contacts turn it, so spheres and polyhedra
+alike have ``f = 6``:
+
+- **Rattlers**: a grain under gravity is held only when its force-bearing points can balance any
+  force and torque, which needs three points not on one line (two points leave the turn about the
+  line through them free: a sphere on two contacts rolls about it). A bulk grain is a rattler when
+  ``n_s + 2 n_d + 3 n_t < 3`` (fewer than 3 contacts for a sphere); a cube resting on one face (a
+  triple contact) is held. Points on one line are not looked for: three separate contacts on one
+  line, or a double and a simple contact in line, are exceptional, and a sphere's never are. The
+  same iteration and boundary as above.
+- **Constraints**: the independent force components of a contact, the rank of the forces its
+  points can exert on a grain: 3 for a simple contact, 5 for a double one (the two points' forces
+  along the edge between them cancel), 6 for a triple one (frictionless: 1, 2, 3).
+  ``constraints_per_grain`` ``C = 3 N_s + 5 N_d + 6 N_t`` (frictionless ``N_s + 2 N_d + 3 N_t``)
+  on the backbone, against the isostatic ``C = 2 f = 12`` (frictionless: 6 for a sphere, 12 for a
+  polyhedron, averaged over the backbone grains); ``hyperstaticity`` ``(C - C_iso) / 2`` is the
+  excess of contact force unknowns over equilibrium equations per grain. With simple contacts only
+  the isostatic count is ``N = 4`` (3 N / 2 = 6), the frictional spheres' value of Agnolin & Roux,
+  Phys. Rev. E 76, 061302 (2007), who find 4.5 at μ = 0.3 on the force-carrying backbone, and the
+  large-μ limit of the poured piles of Silbert et al., Phys. Rev. E 65, 031304 (2002). Without
+  gravity two opposite forces hold a grain, and their rattlers are the grains without force; under
+  gravity every grain carries its weight, hence the three points.
+- **Sliding contacts**: a force-bearing contact of a backbone grain slides when its resultant is on
+  the Coulomb cone, ``|F_T| >= (1 - slide_tol) μ F_n`` (:func:`mobilisation`; ``slide_tol`` 1e-3,
+  ten times the solver's relative tolerance). Each point's force stays in its own cone, so the
+  resultant reaches the cone only when every point of the contact slides the same way.
 """
 
 from __future__ import annotations
@@ -46,10 +75,18 @@ from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.contact.contacts import contact_types
 from granpack.packing import Packing
 
-__all__ = ["Coordination", "RULES", "force_bearing", "force_bearing_points", "near_points", "point_normal_force", "type_rules"]
+__all__ = ["COMPONENTS", "Coordination", "RULES", "force_bearing", "force_bearing_points", "mobilisation", "near_points",
+           "point_normal_force", "type_rules"]
 
 #: the classifications of :func:`type_rules`, the first one gives the main figures
 RULES = ("force", "gap_rule", "geometric")
+
+#: independent force components of a force-bearing contact of type simple, double, triple, under
+#: each rattler rule (module docstring)
+COMPONENTS = {"frictionless": np.array([1.0, 2.0, 3.0]), "frictional": np.array([3.0, 5.0, 6.0])}
+
+#: force-bearing points (``n_s + 2 n_d + 3 n_t``) below which a grain is a frictional rattler
+FRICTIONAL_LEAST_POINTS = 3
 
 
 def force_bearing(packing: Packing, force_tol: float = 1e-9) -> np.ndarray:
@@ -107,6 +144,31 @@ def force_bearing_points(packing: Packing, point_tol: float = 1e-3) -> np.ndarra
         raise ValueError(f"point_tol must be in [0, 1), got {point_tol}")
     fn = point_normal_force(packing)
     return (fn > 0.0) & (fn > point_tol * _manifold_max(fn, packing.contacts.point_start))
+
+
+def mobilisation(packing: Packing, friction: float) -> np.ndarray:
+    """``(M,)`` how far each manifold's resultant is up its Coulomb cone, :math:`|F_T| / (\\mu F_n)`.
+
+    :math:`F_n = \\mathbf F_m \\cdot \\mathbf n_m` and :math:`F_T = |\\mathbf F_m - F_n \\mathbf n_m|`
+    from the resultant force :math:`\\mathbf F_m` of the manifold's point impulses over the step
+    (:attr:`~granpack.packing.Packing.manifold_force`): 0 for a contact without tangential force, 1
+    on the cone (sliding); dimensionless. Each point's force stays in its cone, so the resultant's
+    ratio is at most 1, and 1 only when every point slides the same way. ``nan`` where
+    :math:`F_n \\le 0`.
+
+    Args:
+        packing: the packing with its converged point impulses.
+        friction: the Coulomb coefficient μ > 0.
+    """
+    if not friction > 0:
+        raise ValueError(f"friction must be > 0, got {friction}")
+    force, normal = packing.manifold_force, packing.contacts.normal
+    fn = np.einsum("ij,ij->i", force, normal)
+    ft = np.linalg.norm(force - fn[:, None] * normal, axis=1)
+    out = np.full(len(fn), math.nan)
+    loaded = fn > 0
+    out[loaded] = ft[loaded] / (friction * fn[loaded])
+    return out
 
 
 def near_points(packing: Packing, gap_tol: float = 1e-4) -> np.ndarray:
@@ -180,30 +242,71 @@ def _figures(counts: np.ndarray) -> dict:
     }
 
 
-def _backbone(packing: Packing, active: np.ndarray, ctype: np.ndarray, analysed: np.ndarray, remove: bool):
-    """Iterative rattler rule for one classification.
+def _kept(packing: Packing, active: np.ndarray, removed: np.ndarray) -> np.ndarray:
+    """``(M,)`` the ``active`` manifolds neither of whose grains is ``removed`` (the wall never is)."""
+    c = packing.contacts
+    return active & ~removed[c.body_i] & ~((c.body_j >= 0) & removed[np.maximum(c.body_j, 0)])
+
+
+def _held(packing: Packing, counts: np.ndarray, frictional: bool) -> np.ndarray:
+    """``(N,)`` True for the grains whose force-bearing contacts ``counts`` ``(N, 3)`` (per type)
+    hold them under the rattler rule (module docstring): frictional, at least
+    :data:`FRICTIONAL_LEAST_POINTS` points ``n_s + 2 n_d + 3 n_t``; frictionless, 4 contacts for a
+    sphere and 7 constraints ``n_s + 2 n_d + 3 n_t`` for a polyhedron."""
+    weights = COMPONENTS["frictionless"]
+    if frictional:
+        return counts @ weights >= FRICTIONAL_LEAST_POINTS
+    sphere = packing.state.shapes.is_sphere[packing.state.kind]
+    return np.where(sphere, counts.sum(axis=1), counts @ weights) >= np.where(sphere, 4, 7)
+
+
+def _backbone(packing: Packing, active: np.ndarray, ctype: np.ndarray, analysed: np.ndarray, remove: bool,
+              frictional: bool):
+    """Iterative rattler rule (:func:`_held`) for one classification.
 
     Returns:
         ``(counts_all, counts_backbone, removed)``: ``(N, 3)`` active contacts per type and grain
         before and after removing the rattlers, and the ``(N,)`` rattler flags.
     """
-    state = packing.state
-    c = packing.contacts
-    sphere = state.shapes.is_sphere[state.kind]
-    needed = np.where(sphere, 4, 7)
-    weights = np.array([1.0, 2.0, 3.0])
-    removed = np.zeros(state.n, bool)
+    removed = np.zeros(packing.n_particles, bool)
     counts_all = counts = _type_counts(packing, active, ctype)
     if remove:
         while True:
-            live = active & ~removed[c.body_i] & ~((c.body_j >= 0) & removed[np.maximum(c.body_j, 0)])
-            counts = _type_counts(packing, live, ctype)
-            constraints = np.where(sphere, counts.sum(axis=1), counts @ weights)
-            new = analysed & ~removed & (constraints < needed)
+            counts = _type_counts(packing, _kept(packing, active, removed), ctype)
+            new = analysed & ~removed & ~_held(packing, counts, frictional)
             if not new.any():
                 break
             removed |= new
     return counts_all, counts, removed
+
+
+def _constraint_figures(packing: Packing, counts: np.ndarray, grains: np.ndarray, frictional: bool) -> dict:
+    """``{constraints_per_grain, isostatic_constraints, hyperstaticity}`` of the backbone grains
+    flagged in ``grains`` ``(N,)``, whose force-bearing contacts per type are ``counts`` ``(n, 3)``
+    (module docstring): the mean of their contacts' independent force components
+    (:data:`COMPONENTS`), the mean of ``2 f`` (frictional: 12; frictionless: 6 for a sphere, 12 for
+    a polyhedron) and half their difference; nan without grains."""
+    if len(counts) == 0:
+        return {"constraints_per_grain": math.nan, "isostatic_constraints": math.nan, "hyperstaticity": math.nan}
+    constraints = float((counts @ COMPONENTS["frictional" if frictional else "frictionless"]).mean())
+    sphere = packing.state.shapes.is_sphere[packing.state.kind[grains]]
+    isostatic = 12.0 if frictional else float(np.where(sphere, 6.0, 12.0).mean())
+    return {"constraints_per_grain": constraints, "isostatic_constraints": isostatic,
+            "hyperstaticity": 0.5 * (constraints - isostatic)}
+
+
+def _sliding_figures(packing: Packing, kept: np.ndarray, backbone: np.ndarray, friction: float, slide_tol: float) -> dict:
+    """``{sliding_fraction, mean_mobilisation, n_contacts}`` over the ``kept`` force-bearing
+    manifolds ``(M,)`` that touch a grain flagged in ``backbone`` ``(N,)`` (the contacts ``N``
+    counts): the share whose :func:`mobilisation` is at least ``1 - slide_tol``, and its mean;
+    nan when frictionless or without such contacts."""
+    c = packing.contacts
+    counted = kept & (backbone[c.body_i] | ((c.body_j >= 0) & backbone[np.maximum(c.body_j, 0)]))
+    if not friction > 0 or not counted.any():
+        return {"sliding_fraction": math.nan, "mean_mobilisation": math.nan, "n_contacts": int(counted.sum())}
+    ratio = mobilisation(packing, friction)[counted]
+    return {"sliding_fraction": float((ratio >= 1.0 - slide_tol).mean()), "mean_mobilisation": float(ratio.mean()),
+            "n_contacts": int(counted.sum())}
 
 
 class Coordination(Compute):
@@ -211,7 +314,8 @@ class Coordination(Compute):
 
     The main figures type each force-bearing manifold by the rank of its force-bearing points
     (:func:`force_bearing_points`); :attr:`by_rule` also gives them with the types of the gap rule
-    and of detection (see the module docstring).
+    and of detection (see the module docstring). The rattler rule is the frictional one when the
+    friction coefficient is positive, else the frictionless one (module docstring).
 
     Args:
         z_range: bulk ``(z_bottom, z_top)`` in d; the default bulk region if omitted.
@@ -223,27 +327,40 @@ class Coordination(Compute):
         gap_tol: gap tolerance of the cross-check, relative to the largest grain size
             (:func:`near_points`).
         rank_tol: rank tolerance of the types, relative to the smallest grain size.
+        friction: the Coulomb coefficient μ >= 0 of the contacts; None: the packing's own
+            (:attr:`~granpack.packing.Packing.friction`, the run's ``solver.friction``).
+        slide_tol: a contact slides when its resultant's :func:`mobilisation` is at least
+            ``1 - slide_tol`` (dimensionless, in ``[0, 1)``).
     """
 
     def __init__(self, z_range: tuple[float, float] | None = None, force_tol: float = 1e-9, remove_rattlers: bool = True,
-                 point_tol: float = 1e-3, gap_tol: float = 1e-4, rank_tol: float = 1e-3):
+                 point_tol: float = 1e-3, gap_tol: float = 1e-4, rank_tol: float = 1e-3, friction: float | None = None,
+                 slide_tol: float = 1e-3):
+        if friction is not None and not friction >= 0:
+            raise ValueError(f"friction must be >= 0, got {friction}")
+        if not 0.0 <= slide_tol < 1.0:
+            raise ValueError(f"slide_tol must be in [0, 1), got {slide_tol}")
         self.z_range = z_range
         self.force_tol = float(force_tol)
         self.remove_rattlers = bool(remove_rattlers)
         self.point_tol = float(point_tol)
         self.gap_tol = float(gap_tol)
         self.rank_tol = float(rank_tol)
+        self.friction = None if friction is None else float(friction)
+        self.slide_tol = float(slide_tol)
 
     def compute(self, packing: Packing) -> "Coordination":
         """Count the contacts of the bulk grains of ``packing``."""
         self._start()
+        self._mu = packing.friction if self.friction is None else self.friction
+        frictional = self._mu > 0
         analysed = in_region(packing, analysed_region(packing, self.z_range))
         active = force_bearing(packing, self.force_tol)
         types = type_rules(packing, self.point_tol, self.gap_tol, self.rank_tol)
         self._n = int(analysed.sum())
         self._by_rule = {}
         for rule in RULES:
-            counts_all, counts, removed = _backbone(packing, active, types[rule], analysed, self.remove_rattlers)
+            counts_all, counts, removed = _backbone(packing, active, types[rule], analysed, self.remove_rattlers, frictional)
             same = types[rule][active] == types["force"][active]
             self._by_rule[rule] = {
                 **_figures(counts[analysed & ~removed]),
@@ -258,6 +375,9 @@ class Coordination(Compute):
         self._types = types
         self._analysed = analysed
         removed = self._rattlers
+        backbone = analysed & ~removed
+        self._constraints = _constraint_figures(packing, self._counts[backbone], backbone, frictional)
+        self._sliding = _sliding_figures(packing, _kept(packing, active, removed), backbone, self._mu, self.slide_tol)
         if self._n == 0:
             self._warn("no grain in the bulk region: coordination numbers are nan")
         elif not active.any():
@@ -333,14 +453,44 @@ class Coordination(Compute):
         """Mean number of constraints ``Ns + 2 Nd + 3 Nt`` per backbone grain."""
         return self._backbone["Nc"]
 
+    @result
+    def mu(self) -> float:
+        """The Coulomb coefficient the rules assumed (the ``friction`` given, else the packing's)."""
+        return self._mu
+
+    @result
+    def rattler_rule(self) -> str:
+        """``"frictional"`` (μ > 0) or ``"frictionless"``: the rattler rule and constraint count used."""
+        return "frictional" if self._mu > 0 else "frictionless"
+
+    @result
+    def constraints(self) -> dict:
+        """``{constraints_per_grain, isostatic_constraints, hyperstaticity}`` of the backbone
+        (module docstring): the mean independent force components of a grain's force-bearing
+        contacts (:data:`COMPONENTS` of :attr:`rattler_rule`), their isostatic value ``2 f`` and
+        ``(C - C_iso) / 2``, the excess of contact force unknowns over equilibrium equations per
+        grain; nan without backbone grains."""
+        return dict(self._constraints)
+
+    @result
+    def sliding(self) -> dict:
+        """``{sliding_fraction, mean_mobilisation, n_contacts}``: over the force-bearing contacts of
+        the backbone grains (``n_contacts`` of them), the share whose resultant is on the Coulomb
+        cone to within ``slide_tol`` (:func:`mobilisation` at least ``1 - slide_tol``) and the mean
+        mobilisation; nan for a frictionless packing."""
+        return dict(self._sliding)
+
     def to_dict(self) -> dict:
         """The ``coordination`` part of ``analysis.json``: the backbone figures
         (:attr:`~granpack.analysis.coordination.Coordination.figures`), ``rattler_fraction``,
         ``with_rattlers``, ``n_analysed``, the settings the types were drawn with (``force_tol``,
-        ``type_rule``, ``point_tol``, ``gap_tol``, ``rank_tol``), and the figures of the
-        cross-check classifications ``gap_rule`` and ``geometric`` (:attr:`by_rule`)."""
+        ``type_rule``, ``point_tol``, ``gap_tol``, ``rank_tol``), the figures of the
+        cross-check classifications ``gap_rule`` and ``geometric`` (:attr:`by_rule`), and for a
+        frictional packing only, ``frictional``: the friction coefficient ``mu``, ``rattler_rule``,
+        :attr:`constraints`, :attr:`sliding` and ``slide_tol`` (a frictionless packing's part is
+        that of the frictionless rule alone, without the key)."""
         by_rule = self.by_rule
-        return {
+        out = {
             **self.figures,
             "rattler_fraction": self.rattler_fraction,
             "with_rattlers": self.with_rattlers,
@@ -353,3 +503,12 @@ class Coordination(Compute):
             "gap_rule": by_rule["gap_rule"],
             "geometric": by_rule["geometric"],
         }
+        if self.rattler_rule == "frictional":
+            out["frictional"] = {
+                "mu": self.mu,
+                "rattler_rule": f"fewer than {FRICTIONAL_LEAST_POINTS} force-bearing points (Ns + 2 Nd + 3 Nt)",
+                **self.constraints,
+                **self.sliding,
+                "slide_tol": self.slide_tol,
+            }
+        return out

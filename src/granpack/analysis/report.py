@@ -2,7 +2,8 @@
 
 Top-level keys: ``solid_fraction`` {bulk, std, profile_z, profile_phi, ...}, ``coordination``
 {N, Ns, Nd, Nt, Nc, rattler_fraction, ...; contact types from the force-bearing points, the same
-figures with the gap-rule and the detection types under ``gap_rule`` and ``geometric``}, ``order``
+figures with the gap-rule and the detection types under ``gap_rule`` and ``geometric``; a
+frictional packing's rule, constraint count and sliding contacts under ``frictional``}, ``order``
 {Q00, Q22, director, ...},
 ``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
@@ -61,6 +62,11 @@ class AnalysisOptions:
             is the rank of those points.
         gap_tol: gap tolerance of the cross-check contact types, in d.
         rank_tol: rank tolerance of the contact types, in units of the smallest grain size.
+        friction: the Coulomb coefficient μ >= 0 the coordination rules assume (frictional rules
+            when positive); None: the packing's own (:attr:`~granpack.packing.Packing.friction`,
+            its run's ``solver.friction``).
+        slide_tol: a contact of a frictional packing slides when its resultant is within this
+            share of the Coulomb cone (:func:`~granpack.analysis.coordination.mobilisation`).
         criteria: equilibrium tolerances; None: those of the run (:func:`analyze_run`, from the
             run's ``[equilibrium]`` settings), else the defaults of
             :class:`~granpack.equilibrium.EquilibriumCriteria`.
@@ -81,6 +87,8 @@ class AnalysisOptions:
     sieves: tuple[float, ...] | None = None
     gap_tol: float = 1e-4
     rank_tol: float = 1e-3
+    friction: float | None = None
+    slide_tol: float = 1e-3
     criteria: EquilibriumCriteria | None = None
 
 
@@ -148,7 +156,8 @@ def _compute(packing: Packing, opt: AnalysisOptions) -> tuple[SolidFraction, tup
         bins = max(int(round(r_max / opt.rdf_bin_width)), 1)
         computed = {
             "coordination": Coordination(z_range, opt.force_tol, point_tol=opt.point_tol, gap_tol=opt.gap_tol,
-                                         rank_tol=opt.rank_tol).compute(packing),
+                                         rank_tol=opt.rank_tol, friction=opt.friction,
+                                         slide_tol=opt.slide_tol).compute(packing),
             "order": Order(z_range).compute(packing),
             "pair_correlation": PairCorrelation(bins, r_max, z_range, partials=opt.rdf_partials).compute(packing),
             "equilibrium": Equilibrium(opt.criteria).compute(packing),
@@ -273,14 +282,24 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
 
     sf, co, order = result["solid_fraction"], result["coordination"], result["order"]
     eq, ip = result["equilibrium"], result["interpenetration"]
+    frictional = co.get("frictional")
+    rule = f"frictional rule, μ = {frictional['mu']:g}" if frictional else "frictionless rule"
     rows = [
         ("grains", str(result["n_particles"])),
         ("bulk region z/d", _bulk_region(result["bulk"], fmt)),
         ("solid fraction (bulk)", f"{fmt(sf['bulk'])} ± {fmt(sf['std'])}"),
-        ("N / Nc (backbone)", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
+        (f"N / Nc (backbone, {rule})", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
         ("Ns / Nd / Nt", f"{fmt(co['Ns'], '.3f')} / {fmt(co['Nd'], '.3f')} / {fmt(co['Nt'], '.3f')}"),
-        ("rattler fraction", fmt(co["rattler_fraction"], ".3f")),
+        (f"rattler fraction ({rule})", fmt(co["rattler_fraction"], ".3f")),
     ]
+    if frictional:
+        rows += [
+            ("constraints per grain (isostatic)",
+             f"{fmt(frictional['constraints_per_grain'], '.3f')} ({fmt(frictional['isostatic_constraints'], 'g')}); "
+             f"hyperstaticity {fmt(frictional['hyperstaticity'], '.3f')}"),
+            (f"sliding contacts (|F_T| ≥ (1 - {frictional['slide_tol']:g}) μ F_n)",
+             f"{fmt(frictional['sliding_fraction'], '.4f')}; mean |F_T|/(μ F_n) {fmt(frictional['mean_mobilisation'], '.3f')}"),
+        ]
     for key, label in (("gap_rule", "gap rule"), ("geometric", "detection types")):
         other = co.get(key)
         if other is not None:
