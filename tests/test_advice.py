@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from granpack.advice import GRADING_REFUSAL, USEFUL_NARROWING, advise, column_warning, refusal
+from granpack.advice import GRADING_REFUSAL, USEFUL_NARROWING, advise, column_warning, friction_warning, refusal
 from granpack.campaign import load_campaign
 from granpack.config import load_config, load_config_dict
 from granpack.errors import InputError
@@ -101,3 +101,18 @@ def test_the_python_api_warns_as_the_cli_does(tmp_path, capsys):
     run_packing(config, tmp_path / "api", progress="lines")
     err = capsys.readouterr().err
     assert [line for line in err.splitlines() if line.startswith("warning: ")] == [f"warning: {w}" for w in expected]
+
+
+def test_check_says_in_one_line_that_a_frictional_pile_is_analysed_by_the_frictional_rules(tmp_path, capsys):
+    settings = {"n_particles": 300, "lateral_size": 3.0,
+                "populations": [{"shape": "pinacoid", "size": 1.0, "volume_fraction": 1.0}]}
+    assert friction_warning(load_config_dict(settings)) is None
+    frictional = load_config_dict({**settings, "solver": {"friction": 0.5}})
+    line = friction_warning(frictional)
+    assert line.startswith("solver.friction = 0.5: `granpack analyze` applies the frictional rules")
+    assert "below 3 force-bearing contact points" in line and "\n" not in line
+    assert advise(frictional) == [line]  # the demo's pile, but frictional: no other advice
+    path = tmp_path / "frictional.toml"
+    path.write_text(frictional.to_toml())
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0 and [x for x in err.splitlines() if x.startswith("warning: ")] == [f"warning: {line}"]

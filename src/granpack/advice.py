@@ -5,7 +5,8 @@ written, so the Python API warns and refuses as ``granpack check`` and ``granpac
 campaign checks each of its runs the same way before any starts.
 
 - Warnings (:func:`warnings_of`): settings outside the range where runs are known to go well, a
-  pile too short for a bulk region, a grading that the grains follow only roughly. The run goes on.
+  pile too short for a bulk region, a grading that the grains follow only roughly, a frictional
+  pile, whose analysis follows other rules than the frictionless study's. The run goes on.
 - Refusals (:func:`refusal`, raised by :func:`advise` as :class:`~granpack.errors.InputError`): a
   grading that ``n_particles`` grains cannot represent at all, because their poured sieve curve
   strays from the requested one by more than :data:`GRADING_REFUSAL`, or because they make no pile
@@ -22,7 +23,7 @@ from granpack.config import RunConfig
 from granpack.errors import InputError
 from granpack.mixture import PHI_MIXED_SIZES, PHI_ONE_SIZE, Mixture
 
-__all__ = ["GRADING_DEVIATION", "GRADING_REFUSAL", "LEAST_GRADED_PILE", "advise", "column_warning",
+__all__ = ["GRADING_DEVIATION", "GRADING_REFUSAL", "LEAST_GRADED_PILE", "advise", "column_warning", "friction_warning",
            "grading_warnings", "refusal", "settings_warnings", "warnings_of", "USEFUL_NARROWING"]
 
 #: largest gap between the requested and the poured sieve curves accepted without a warning
@@ -53,6 +54,20 @@ def settings_warnings(config: RunConfig) -> list[str]:
         notes.append(f"equilibrium.max_time = {config.equilibrium.max_time:g} sqrt(d/g): piles seldom come to rest "
                      "before t = 30 (300 isometric pinacoids: about 60), so the run will likely stop at the cap")
     return notes
+
+
+def friction_warning(config: RunConfig) -> str | None:
+    """For a frictional run (``solver.friction`` > 0), the one line that says how its analysis
+    differs: the frictional rules of :mod:`granpack.analysis.coordination` (rattlers, constraint
+    count, isostatic references, sliding contacts), whose figures are not those of the frictionless
+    study; None for a frictionless run."""
+    mu = config.solver.friction
+    if not mu > 0:
+        return None
+    return (f"solver.friction = {mu:g}: `granpack analyze` applies the frictional rules (a rattler below 3 "
+            "force-bearing contact points; 3, 5, 6 force components per simple, double, triple contact against an "
+            "isostatic 12 per grain, N = 4 for spheres; sliding contacts counted): compare its N and Nc with those, "
+            "not with the frictionless N = 6 and Nc = 12")
 
 
 def _grains_for_gap(config: RunConfig, deviation: float, target: float) -> int:
@@ -122,9 +137,10 @@ def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
 
 
 def warnings_of(config: RunConfig, mixture: Mixture) -> list[str]:
-    """Every warning of ``config``: its settings, its gradings, its pile."""
-    column = column_warning(config, mixture)
-    return settings_warnings(config) + grading_warnings(config, mixture) + ([column] if column else [])
+    """Every warning of ``config``: its settings, its gradings, its pile, its friction."""
+    column, friction = column_warning(config, mixture), friction_warning(config)
+    return (settings_warnings(config) + grading_warnings(config, mixture) + ([column] if column else [])
+            + ([friction] if friction else []))
 
 
 def refusal(config: RunConfig, mixture: Mixture) -> str | None:
