@@ -27,6 +27,11 @@ where ``pip install --no-deps compas-lmgc90 numpy`` put it):
   state as a granpack run folder ``OUT/lmgc/final.gsd`` (analyse it with ``granpack analyze``);
   stops when granpack's criteria, or else the study's, have held for five checks in a row, or at
   ``--max-time``;
+- ``pairs OUT``: how LMGC90's interactions group by pair in the latest state a run saved
+  (``OUT/lmgc_interactions.npz``, LMGC90's interactions as they are, written with
+  ``final.gsd``): one JSON object, for every pair of bodies the points found with each body as
+  candidate against the type granpack gives the merged manifold, and the contacts per grain
+  counted per manifold, per pair and per (candidate, antagonist) call;
 - ``report OUT GRANPACK_RUN``: analyses both piles (``analysis.json`` in each folder) and prints
   one JSON object: solid fraction, k, contact types, CPU time to rest, per step.
 
@@ -326,30 +331,53 @@ class Lmgc:
         return arr
 
 
-def contact_set(inters, n: int, position: np.ndarray, L: float):
-    """granpack's ContactSet from LMGC90's interactions: the points of a pair (candidate i,
-    antagonist j, -1 for the floor) make one manifold, its normal the mean of theirs (from j
-    towards i), impulses in granpack's unit."""
+def raw_interactions(sim: "Lmgc") -> dict:
+    """LMGC90's PRPRx interactions as arrays, one row per interaction: candidate and antagonist
+    bodies (0-based; the floor tiles after the grains), the point, its gap, the local frame (t, n,
+    s), the reaction (a force in N on the candidate, in that frame) and LMGC90's ``type_ctc``,
+    the number of points its detection found for that (candidate, antagonist) call."""
+    inters = sim.interactions()
+    get_type = F(sim.so, "prprx_MOD_get_type_prprx")
+    get_type.restype = ctypes.c_int
+    return {"cd": np.array([it.icdbdy - 1 for it in inters], np.int64),
+            "an": np.array([it.ianbdy - 1 for it in inters], np.int64),
+            "point": np.array([it.coor[:] for it in inters]).reshape(-1, 3),
+            "gap": np.array([it.gap for it in inters], np.float64),
+            "frame": np.array([it.uc[:] for it in inters]).reshape(-1, 9),
+            "rloc": np.array([it.rloc[:] for it in inters]).reshape(-1, 3),
+            "type_ctc": np.array([get_type(ctypes.byref(ctypes.c_int(it.icdan))) for it in inters], np.int64)}
+
+
+def _pair_key(cd: int, an: int, n: int, merge_floor: bool = True) -> tuple[int, int, bool]:
+    """granpack's pair of an interaction: the grain of lower index (or the grain, for the floor)
+    as i, j = -1 for the floor (or the tile's body, merge_floor False); and whether LMGC90's
+    candidate is that i."""
+    i, j, flipped = cd, an, False
+    if i >= n or (j < n and j < i):
+        i, j, flipped = j, i, True
+    return i, (j if j < n or not merge_floor else -1), not flipped
+
+
+def contact_set(raw: dict, n: int, position: np.ndarray, L: float, merge_floor: bool = True):
+    """granpack's ContactSet from LMGC90's interactions (``raw_interactions``): the points of a
+    pair make one manifold, the grain of lower index (or the grain, for the floor) as i, its
+    normal the mean of theirs (from j towards i), impulses in granpack's unit; a grain's points
+    on the floor tiles make one manifold with the floor (j = -1), or one per tile (j the tile's
+    body) if not merge_floor. LMGC90 finds a pair's points in one detection call, one body as
+    candidate (the lower index, but for pairs across the periodic boundary), so the merge is a
+    change of sign for some pairs, not a union of two sides (``pairs`` measures it)."""
     from granpack.contact import ContactSet
     from granpack.contact.contacts import contact_types
 
     rows = {}
-    for it in inters:
-        i, j = it.icdbdy - 1, it.ianbdy - 1
-        if i >= n and j >= n:  # two floor tiles
+    for cd, an, point, gap, uc, r in zip(raw["cd"], raw["an"], raw["point"], raw["gap"], raw["frame"], raw["rloc"]):
+        if cd >= n and an >= n:  # two floor tiles
             continue
-        uc = np.array(it.uc[:])
         t, nrm, s = uc[0:3], uc[3:6], uc[6:9]
-        r = np.array(it.rloc[:])  # the reaction on the candidate, a force in N (this wheel's rloc)
         imp = (r[0] * t + r[1] * nrm + r[2] * s) * (H / G)  # impulse over h, rho g d^3 sqrt(d/g)
-        point, gap = np.array(it.coor[:]), float(it.gap)
-        # nodal detection gives a pair's points from either body as candidate: one manifold per
-        # pair, the grain of lower index (or the grain, for the floor) as i
-        if i >= n or (j < n and j < i):
-            i, j, nrm, imp = j, i, -nrm, -imp
-        if j >= n:
-            j = -1
-        rows.setdefault((i, j), []).append((point, gap, nrm, imp))
+        i, j, as_cd = _pair_key(int(cd), int(an), n, merge_floor)
+        sign = 1.0 if as_cd else -1.0
+        rows.setdefault((i, j), []).append((point, float(gap), sign * nrm, sign * imp))
     keys = sorted(rows)
     body_i = np.array([k[0] for k in keys], dtype=np.int64)
     body_j = np.array([k[1] for k in keys], dtype=np.int64)
@@ -361,7 +389,7 @@ def contact_set(inters, n: int, position: np.ndarray, L: float):
         rs = rows[key]
         nsum = sum(r[2] for r in rs)
         normal[m] = nsum / np.linalg.norm(nsum)
-        if key[1] >= 0:
+        if 0 <= key[1] < n:
             d = position[key[0], :2] - position[key[1], :2]
             shift[m, :2] = L * np.round(d / L)
         for point, gap, _, imp in rs:
@@ -431,7 +459,8 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
         v, omega = _velocities(x0, r0, x1, r1, L, H)
         t = sim.step_count * H
         state, config = granpack_state(init, x1, matrix_to_quat(r1), v, omega, t)
-        cs = contact_set(sim.interactions(), n, x1, L)
+        raw = raw_interactions(sim)
+        cs = contact_set(raw, n, x1, L)
         rep_gp = check_equilibrium(state, cs, H, criteria=crit_gp)
         rep_st = check_equilibrium(state, cs, H, criteria=crit_study)
         for key, rep in (("granpack", rep_gp), ("study", rep_st)):
@@ -462,6 +491,7 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
                                         "time": t, "cpu_s": cpu, "rest": rest, "nlgs_sweeps": sim.sweeps})
             (out / "lmgc").mkdir(exist_ok=True)
             write_packing(out / "lmgc" / "final.gsd", packing)
+            np.savez(out / "lmgc_interactions.npz", position=x1, n=n, lateral_size=L, time=t, **raw)
             (out / "lmgc_summary.json").write_text(json.dumps(
                 {"status": status, "steps": sim.step_count, "time": t, "cpu_s": cpu, "setup_cpu_s": setup_cpu,
                  "cpu_per_step_s": cpu / sim.step_count, "nlgs_sweeps_per_step": sim.sweeps / sim.step_count,
@@ -470,6 +500,77 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
             break  # at rest by granpack's criteria, or by the study's (five checks in a row)
     log.write(f"# end: {status} at t = {sim.step_count * H:.2f}, {time.process_time() - cpu0:.0f} CPU s\n")
     return json.loads((out / "lmgc_summary.json").read_text())
+
+
+# ---------------------------------------------------------------- interactions by pair
+def _class(points: int) -> str:
+    """A contact type by its number of points, as a study counting points would: 1 simple, 2
+    double, 3 or 4 triple (face to face)."""
+    return {1: "simple", 2: "double"}.get(points, "triple")
+
+
+def _counting(sides: list[tuple[int, int]], gp_types: list[int], n: int) -> dict:
+    """Contacts per grain (2 x count / grains) of the grain pairs counted three ways: granpack's
+    merged manifold (its type from the rank of the points), LMGC90's interactions per pair of
+    bodies, and per (candidate, antagonist) ordered pair (LMGC90's own ``type_ctc``)."""
+    ways = {"granpack manifold": [{1: "simple", 2: "double", 3: "triple"}[t] for t in gp_types],
+            "interactions per pair": [_class(a + b) for a, b in sides],
+            "interactions per ordered pair": [_class(k) for a, b in sides for k in (a, b) if k]}
+    return {way: {c: round(2 * kinds.count(c) / n, 3) for c in ("simple", "double", "triple")}
+            | {"N": round(2 * len(kinds) / n, 3)} for way, kinds in ways.items()}
+
+
+def pair_table(raw: dict, n: int, position: np.ndarray, L: float) -> dict:
+    """How LMGC90's PRPRx interactions group by pair of bodies: for each pair (granpack's merged
+    manifold; a grain and a floor tile, not the whole floor), the points found with the
+    lower-index grain (or the grain) as candidate (a) and with the other body as candidate (b),
+    against the type granpack gives the merged manifold; over all the points within the alert
+    distance, and over those bearing a force (rn > 0)."""
+    from granpack.contact.contacts import contact_types
+
+    cs = contact_set(raw, n, position, L, merge_floor=False)
+    rows = {}
+    for k, (cd, an) in enumerate(zip(raw["cd"], raw["an"])):
+        if cd < n or an < n:
+            i, j, as_cd = _pair_key(int(cd), int(an), n, merge_floor=False)
+            rows.setdefault((i, j), []).append((k, as_cd))
+    keys = sorted(rows)
+    order = np.array([k for key in keys for k, _ in rows[key]], np.int64)  # cs's point order
+    force = raw["rloc"][:, 1] > 0.0
+    calls = {}  # points per (candidate, antagonist) call, against LMGC90's type_ctc
+    for cd, an in zip(raw["cd"], raw["an"]):
+        calls[(cd, an)] = calls.get((cd, an), 0) + 1
+    type_ok = sum(int(t == calls[(cd, an)]) for cd, an, t in zip(raw["cd"], raw["an"], raw["type_ctc"]))
+    out = {"interactions": int(len(raw["gap"])), "interactions_bearing_force": int(force.sum()),
+           "type_ctc_equals_points_of_its_call": f"{type_ok} of {len(raw['gap'])}"}
+    for label, mask in (("all", np.ones(len(force), bool)), ("bearing_force", force)):
+        gp = contact_types(cs, 1e-3 / 3.0, mask=mask[order])
+        table, sides, gp_grain = {}, [], []
+        pairs = {"grain": 0, "floor": 0, "both_sides": 0}
+        for m, key in enumerate(keys):
+            a = sum(1 for k, as_cd in rows[key] if as_cd and mask[k])
+            b = sum(1 for k, as_cd in rows[key] if not as_cd and mask[k])
+            if a + b == 0:
+                continue
+            kind = "floor" if key[1] >= n else "grain"
+            pairs[kind] += 1
+            pairs["both_sides"] += int(a > 0 and b > 0)
+            cell = table.setdefault(f"{kind} {a}+{b}", {"simple": 0, "double": 0, "triple": 0})
+            cell[{1: "simple", 2: "double", 3: "triple"}[int(gp[m])]] += 1
+            if kind == "grain":
+                sides.append((a, b))
+                gp_grain.append(int(gp[m]))
+        out[label] = {"pairs": pairs, "points_a+b_vs_granpack_type": dict(sorted(table.items())),
+                      "per_grain": _counting(sides, gp_grain, n)}
+    return out
+
+
+def pairs(out: Path) -> dict:
+    """``pair_table`` of the latest LMGC90 state a run saved (``OUT/lmgc_interactions.npz``)."""
+    d = dict(np.load(out / "lmgc_interactions.npz"))
+    raw = {k: d[k] for k in ("cd", "an", "point", "gap", "frame", "rloc", "type_ctc")}
+    return {"time": float(d["time"]), "grains": int(d["n"])} | pair_table(
+        raw, int(d["n"]), d["position"], float(d["lateral_size"]))
 
 
 # ---------------------------------------------------------------- the report
@@ -551,6 +652,8 @@ def main(argv=None) -> int:
     r.add_argument("out", type=Path)
     r.add_argument("--max-time", type=float, default=300.0)
     r.add_argument("--steps", type=int, default=None)
+    q = sub.add_parser("pairs")
+    q.add_argument("out", type=Path)
     p = sub.add_parser("report")
     p.add_argument("out", type=Path)
     p.add_argument("granpack_run", type=Path)
@@ -559,6 +662,8 @@ def main(argv=None) -> int:
         res = export(a.config, a.out)
     elif a.cmd == "lmgc":
         res = run_lmgc(a.out, a.max_time, a.steps)
+    elif a.cmd == "pairs":
+        res = pairs(a.out)
     else:
         res = report(a.out, a.granpack_run)
     print(json.dumps(_strict(res), indent=1))
