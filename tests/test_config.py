@@ -231,8 +231,8 @@ def test_to_toml_writes_every_default():
          "volume_fraction": 1.0, "aspect": [1.0, 1.0]}]
     for table in SETTING_TABLES:
         model = type(getattr(cfg, table))
-        expected = set(model.model_fields) - ({"alert_distance"} if table == "time_stepping" else set())
-        assert set(parsed[table]) == expected
+        unset = {"time_stepping": {"alert_distance"}, "container": {"wall_friction"}}.get(table, set())
+        assert set(parsed[table]) == set(model.model_fields) - unset
     assert {"seed", "n_particles", "lateral_size"} <= set(parsed)
 
 
@@ -355,3 +355,37 @@ def test_every_setting_has_one_declaration_that_the_step_defaults_follow():
     for table in SETTING_TABLES:
         assert f"[{table}]" in text
     assert "# Time step h. Rule of thumb" in text and "[sqrt(d/g)]" in text
+
+
+@pytest.mark.parametrize("shape", ["periodic", "box", "cylinder"])
+def test_container_shapes_and_wall_friction(shape):
+    cfg = load_config_dict({**pinacoids(), "container": {"shape": shape, "wall_friction": 0.3}})
+    assert (cfg.container.shape, cfg.container.wall_friction) == (shape, 0.3)
+    assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
+    assert load_config_dict(pinacoids()).container.shape == "periodic"
+
+
+@pytest.mark.parametrize("table, message", [
+    ({"shape": "sphere"}, "container.shape: must be 'periodic', 'box' or 'cylinder' (got 'sphere')"),
+    ({"wall_friction": -0.1}, "container.wall_friction: must be >= 0 (got -0.1)"),
+    ({"diameter": 3}, "container.diameter: unknown key (allowed: shape, wall_friction)"),
+])
+def test_container_errors_name_the_field_and_the_allowed_values(table, message):
+    with pytest.raises(InputError) as err:
+        load_config_dict({**pinacoids(), "container": table}, source="c.toml")
+    assert str(err.value) == f"c.toml: {message}"
+
+
+@pytest.mark.parametrize("shape, words", [("cylinder", "cylinder holds two of the largest grains"),
+                                          ("box", "box holds two grains")])
+def test_a_container_narrower_than_two_grains_is_refused(shape, words):
+    with pytest.raises(InputError) as err:
+        load_config_dict({**pinacoids(), "lateral_size": 2.0, "container": {"shape": shape}}, source="c.toml")
+    text = str(err.value)
+    assert text.startswith("c.toml: lateral_size: must exceed 2 x (largest grain size 1") and words in text
+    assert "\n" not in text
+
+
+def test_a_container_pours_its_deposit_inside_its_walls():
+    with pytest.raises(InputError, match="deposit.lateral: must be \"walls\" in a cylinder"):
+        load_config_dict({**pinacoids(), "container": {"shape": "cylinder"}, "deposit": {"lateral": "periodic"}})

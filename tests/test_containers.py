@@ -15,7 +15,10 @@ from scipy.spatial.transform import Rotation
 
 from granpack.box import Box
 from granpack.contact import SIMPLE, TRIPLE, ContactSet, detect
-from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix
+from granpack.deposit import deposit
+from granpack.equilibrium import wall_force
+from granpack.nscd import StepParameters, step, total_energy
+from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix, random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
 from granpack.state import ParticleState
 
@@ -212,3 +215,86 @@ def test_polyhedron_touching_the_cylinder(name, touch, count, angle, gap):
         np.testing.assert_allclose(m["gaps"], [gap], atol=1e-12)
         np.testing.assert_allclose(m["normal"], -u, atol=1e-12)
         np.testing.assert_allclose(m["points"][0], v[k] + 0.5 * gap * u, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# dynamics: grains held by the container
+
+H = 5e-3
+
+
+def run_steps(state, params, steps):
+    warm = None
+    for _ in range(steps):
+        warm, _ = step(state, params, warm)
+    return warm
+
+
+def forces_by_wall(contacts, h=H) -> dict:
+    """``{wall id: total force of that wall on the grains}``."""
+    on = contacts.body_j[contacts.point_manifold]
+    return {int(w): contacts.impulse[on == w].sum(axis=0) / h for w in np.unique(on[on < 0])}
+
+
+def test_a_ball_at_rest_in_the_cylinder_on_the_floor_stays_put():
+    r = 0.5
+    u = np.array([math.cos(0.3), math.sin(0.3), 0.0])
+    start = np.array([*AXIS, r]) + (R_CYL - r) * u  # on the floor, touching the cylinder
+    state = state_of([Sphere(2 * r)], [0], [start], [IDENTITY], "cylinder")
+    warm = run_steps(state, StepParameters(time_step=H), 200)
+    assert np.abs(state.position[0] - start).max() < 1e-9
+    assert np.abs(state.velocity).max() < 1e-9
+    walls = forces_by_wall(warm)
+    np.testing.assert_allclose(walls[-1], [0.0, 0.0, state.mass[0]], atol=1e-9)
+    np.testing.assert_allclose(walls.get(-6, np.zeros(3)), 0.0, atol=1e-9)
+    assert wall_force(warm, H) == pytest.approx(state.mass[0], rel=1e-9)
+
+
+@pytest.mark.parametrize("mu, sliding", [(0.6, 0.0), (0.2, 0.3)])
+def test_a_block_against_a_box_wall_slides_at_the_walls_friction(mu, sliding):
+    """A cube pressed against the wall x = 0 by gravity (-1, 0, -1/2), far above the floor: the
+    wall's Coulomb friction (the grains' is 0) holds it when mu >= 1/2, else it slides down at
+    (1/2 - mu) g."""
+    cube = platonic("cube", 1.0)
+    half = float(cube.vertices[:, 0].max())
+    state = state_of([cube], [0], [[half, 2.0, 3.0]], [IDENTITY], "box")
+    params = StepParameters(time_step=H, friction=0.0, wall_friction=mu, gravity=(-1.0, 0.0, -0.5))
+    run_steps(state, params, 100)
+    assert state.velocity[0, 2] == pytest.approx(-sliding * 100 * H, abs=1e-9)
+    assert abs(state.position[0, 0] - half) < 1e-9
+
+
+def _poured(container, n=80, seed=3):
+    """``n`` pinacoids on the centres of a deposit inside ``container``, heights stretched so they
+    fall."""
+    rng = np.random.default_rng(seed)
+    x = deposit(np.full(n, 0.5), L, rng, lateral="walls" if container == "box" else "cylinder")
+    x[:, 2] = 0.5 + 1.3 * (x[:, 2] - 0.5)
+    sh = Pinacoid.from_size(1.0, 1.0, 1.0)
+    return state_of([sh], np.zeros(n, int), x, random_quaternions(n, rng), container)
+
+
+def _outside(state) -> float:
+    """How far the farthest vertex of any grain lies beyond the container's walls, d."""
+    v = np.concatenate([world_vertices(state.shapes.shapes[0], q, x)
+                        for q, x in zip(state.quaternion, state.position)])
+    if state.box.container == "cylinder":
+        return float((np.linalg.norm(v[:, :2] - AXIS, axis=1) - R_CYL).max())
+    return float(max(-v[:, :2].min(), (v[:, :2] - L).max()))
+
+
+@pytest.mark.parametrize("container", ["box", "cylinder"])
+def test_a_pile_poured_into_a_container_never_gains_energy_and_stays_inside(container):
+    state = _poured(container)
+    assert _outside(state) < 0.0
+    params = StepParameters(time_step=H, theta=1.0)
+    e0 = total_energy(state)
+    warm = None
+    for _ in range(300):
+        before = total_energy(state)
+        warm, info = step(state, params, warm)
+        assert total_energy(state) - before - info.correction_energy < 1e-12 * e0
+    assert total_energy(state) < e0 - 0.5  # the pour dissipated
+    assert _outside(state) < 2e-3  # within the overlap the solver allows
+    walls = set(np.unique(warm.body_j[warm.body_j < 0]).tolist())
+    assert walls <= ({-1, -2, -3, -4, -5} if container == "box" else {-1, -6}) and len(walls) > 1

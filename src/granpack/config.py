@@ -11,7 +11,7 @@ reported by :func:`load_config` / :func:`load_config_dict` as one
     config.toml: populations[1].size: must be > 0 (got -1)
 
 The settings are grouped by what they control, one table each (:data:`SETTING_TABLES`):
-``[time_stepping]``, ``[solver]`` (contact law and NLGS), ``[overlap]``, ``[end_game]``,
+``[container]`` (the cell's sides: periodic, a box or a cylinder), ``[time_stepping]``, ``[solver]`` (contact law and NLGS), ``[overlap]``, ``[end_game]``,
 ``[threads]``, ``[equilibrium]``, ``[deposit]``, ``[output]``; each field is declared once here, with
 its default, bounds, unit and meaning, and the nscd defaults, the reference page and ``granpack
 check`` read them from here. A file in the flat ``[solver]`` layout of granpack 0.1.0 is read as
@@ -57,6 +57,7 @@ __all__ = [
     "EquilibriumConfig",
     "DepositConfig",
     "OutputConfig",
+    "ContainerConfig",
     "RunConfig",
     "load_config",
     "load_config_dict",
@@ -689,8 +690,25 @@ class ThreadsConfig(_Model):
         "ends on a barrier, so two runs sharing two cores should each have NUMBA_NUM_THREADS=1.")
 
 
+class ContainerConfig(_Model):
+    """What holds the grains beside the floor z = 0 (the cell's sides, :mod:`granpack.box`).
+
+    Method: docs/method/contact-detection.md#containers.
+    """
+
+    shape: Literal["periodic", "box", "cylinder"] = _setting(
+        "periodic", description='"periodic": x and y periodic with period `lateral_size` (a bulk sample); '
+        '"box": four rigid vertical walls, `lateral_size` the inside side; "cylinder": a rigid vertical '
+        "cylinder, `lateral_size` its inside diameter. The deposit pours into the container, and the settling "
+        "holds the grains with its walls from the start.")
+    wall_friction: Optional[_Number] = _setting(
+        None, ge=0, description="Coulomb friction coefficient of the grains against the floor and the "
+        "container's walls; unset: `solver.friction`.")
+
+
 #: the tables of a run config that hold settings, in the order a resolved config writes them
-SETTING_TABLES = ("time_stepping", "solver", "overlap", "end_game", "threads", "equilibrium", "deposit", "output")
+SETTING_TABLES = ("container", "time_stepping", "solver", "overlap", "end_game", "threads", "equilibrium", "deposit",
+                  "output")
 
 #: keys of the flat ``[solver]`` table of granpack 0.1.0 and where they now live, ``(table, key)``
 MOVED_SOLVER_KEYS = {
@@ -758,7 +776,8 @@ class OutputConfig(_Model):
 class RunConfig(_Model):
     """One packing: the grains, the cell, and the solver, equilibrium, deposit and output settings.
 
-    ``lateral_size`` is declared after ``populations`` and ``time_stepping`` because its check uses them.
+    ``lateral_size`` is declared after ``populations``, ``time_stepping`` and ``container`` because
+    its check uses them.
     """
 
     seed: int = Field(default=1, ge=0, description="Seed of the random generator (deposit, orientations).")
@@ -771,8 +790,10 @@ class RunConfig(_Model):
     overlap: OverlapConfig = Field(default_factory=OverlapConfig, description="[overlap] table.")
     end_game: EndGameConfig = Field(default_factory=EndGameConfig, description="[end_game] table.")
     threads: ThreadsConfig = Field(default_factory=ThreadsConfig, description="[threads] table.")
+    container: ContainerConfig = Field(default_factory=ContainerConfig, description="[container] table.")
     lateral_size: Annotated[_Number, Field(validate_default=True)] = Field(
-        default=8.0, gt=0, description="Side of the square periodic cell, d."
+        default=8.0, gt=0, description="Side of the square periodic cell, or the container's inside side "
+        "(box) or diameter (cylinder), d."
     )
     equilibrium: EquilibriumConfig = Field(default_factory=EquilibriumConfig, description="[equilibrium] table.")
     deposit: DepositConfig = Field(default_factory=DepositConfig, description="[deposit] table.")
@@ -799,15 +820,20 @@ class RunConfig(_Model):
     @classmethod
     def _check_lateral(cls, lateral_size: float, info: ValidationInfo) -> float:
         populations, stepping = info.data.get("populations"), info.data.get("time_stepping")
-        if populations is None or stepping is None:
+        container = info.data.get("container")
+        if populations is None or stepping is None or container is None:
             return lateral_size  # reported elsewhere
         largest = max(p.largest_size for p in populations)
         alert = _alert_distance(stepping, largest)
         minimum = _narrowest_cell(largest, alert)
         if not lateral_size > minimum:
+            what = {"periodic": "so that a pair interacts through at most one periodic image",
+                    "box": "so that the box holds two grains side by side (its inside side)",
+                    "cylinder": "so that the cylinder holds two of the largest grains side by side (its inside "
+                                "diameter)"}[container.shape]
             raise ValueError(
-                f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d so that a "
-                f"pair interacts through at most one periodic image (got {lateral_size:g})"
+                f"must exceed 2 x (largest grain size {largest:g} + alert distance {alert:g}) = {minimum:g} d {what} "
+                f"(got {lateral_size:g})"
             )
         smallest = min(p.smallest_size for p in populations)
         cells = (lateral_size / (smallest + alert)) ** 2
@@ -818,6 +844,13 @@ class RunConfig(_Model):
                 f"of the smallest grain's size {smallest:g} d, more than the {MAX_GRID_CELLS:.3g} granpack allocates"
             )
         return lateral_size
+
+    @model_validator(mode="after")
+    def _check_deposit_sides(self) -> "RunConfig":
+        if self.container.shape != "periodic" and self.deposit.lateral == "periodic":
+            raise ValueError(f'deposit.lateral: must be "walls" in a {self.container.shape} (container.shape '
+                             f'{self.container.shape!r}: the deposit pours into the container; got "periodic")')
+        return self
 
     @model_validator(mode="after")
     def _check_times(self) -> "RunConfig":

@@ -41,7 +41,7 @@ Criteria (defaults after Agnolin & Roux 2007):
 
 with ``d_p`` the circumscribed diameter, :math:`\\bar P` the Love–Weber pressure averaged over the
 column below ``z_top`` (the whole column when ``z_top`` is below every centre), ``W = g Σ m_p`` the
-total weight and ``F_S`` the vertical force on the bottom wall.
+total weight and ``F_S`` the vertical force of the walls (the floor, and a container's walls).
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ class EquilibriumFields:
         force_ratio: ``(N,)`` :math:`|F_p| / (d_p^2 P_p)`.
         torque_ratio: ``(N,)`` :math:`|T_p| / (d_p^3 P_p)`.
         energy_ratio: ``(N,)`` :math:`E_p / (d_p^3 \\bar P)`.
-        wall_force: vertical force on the wall, F_S.
+        wall_force: vertical force of the walls, F_S.
         weight: total weight W.
     """
 
@@ -191,7 +191,7 @@ def _bincount3(index: np.ndarray, values: np.ndarray, n: int) -> np.ndarray:
 
 
 def _point_arrays(state: ParticleState, contacts: ContactSet, time_step: float):
-    """Per point: body i, body j (-1 wall), force on i, lever arms about x_i and x_j (min. image)."""
+    """Per point: body i, body j (< 0 a wall), force on i, lever arms about x_i and x_j (min. image)."""
     seg = contacts.point_manifold
     bi = contacts.body_i[seg]
     bj = contacts.body_j[seg]
@@ -291,7 +291,8 @@ def slab_pressure(z: np.ndarray, trace: np.ndarray, area: float, thickness: floa
 
 
 def wall_force(contacts: ContactSet, time_step: float) -> float:
-    """Total vertical force on the bottom wall, :math:`F_S = \\sum_{wall} f_z` (upward on the grains)."""
+    """Total vertical force of the walls on the grains, :math:`F_S = \\sum_{walls} f_z` (upward): the
+    floor's, and a container's walls' (their friction carries part of the weight)."""
     if contacts.impulse is None or contacts.n_points == 0:
         return 0.0
     wall_points = contacts.body_j[contacts.point_manifold] < 0

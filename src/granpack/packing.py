@@ -144,14 +144,16 @@ class Packing:
 
     @property
     def is_wall_contact(self) -> np.ndarray:
-        """``(M,)`` True for manifolds with the bottom wall."""
-        return self.contacts.body_j == WALL
+        """``(M,)`` True for manifolds with a wall: the floor or a container's (``body_j < 0``)."""
+        return self.contacts.body_j < 0
 
     def branch_vectors(self) -> np.ndarray:
         """``(M, 3)`` branch vector from the antagonist centre to the candidate centre, d.
 
-        ``x_i - (x_j + shift)``; for the wall the antagonist centre is the projection of ``x_i`` on
-        the plane z = 0, so the branch vector is ``(0, 0, z_i)``. Lateral components are reduced to
+        ``x_i - (x_j + shift)``; for a wall the antagonist centre is the projection of ``x_i`` on
+        the wall along the manifold's normal ``n``: ``(0, 0, z_i)`` for the floor, and
+        ``((x_i - w) . n) n`` for a container's wall, ``w = x_1 - g_1 n / 2`` the wall's point
+        beside the manifold's first point ``x_1`` (gap ``g_1``). Lateral components are reduced to
         the minimum image (positions may have been wrapped after detection).
         """
         c = self.contacts
@@ -159,7 +161,13 @@ class Packing:
         out = np.zeros((c.n_manifolds, 3))
         pair = c.body_j >= 0
         out[pair] = self.box.minimum_image(x[c.body_i[pair]] - (x[c.body_j[pair]] + c.shift[pair]))
-        out[~pair, 2] = x[c.body_i[~pair], 2]
+        floor = c.body_j == WALL
+        out[floor, 2] = x[c.body_i[floor], 2]
+        side = c.body_j < WALL
+        first = c.point_start[:-1][side]
+        normal = c.normal[side]
+        wall_point = c.point[first] - 0.5 * c.gap[first][:, None] * normal
+        out[side] = np.einsum("ij,ij->i", x[c.body_i[side]] - wall_point, normal)[:, None] * normal
         return out
 
 

@@ -61,7 +61,8 @@ def step_parameters(config: RunConfig) -> StepParameters:
     t, s, o = config.time_stepping, config.solver, config.overlap
     points = config.threads.parallel_points
     return StepParameters(
-        time_step=t.time_step, theta=t.theta, rotation_from_start=t.rotation_update == "from-start", friction=s.friction, restitution=s.restitution,
+        time_step=t.time_step, theta=t.theta, rotation_from_start=t.rotation_update == "from-start", friction=s.friction,
+        wall_friction=config.container.wall_friction, restitution=s.restitution,
         tolerance=s.tolerance, max_iterations=s.max_iterations, check_every=s.check_every,
         alert=config.resolved_alert_distance, overlap_slop=o.projection_slop,
         recovery_slop=o.recovery_slop, recovery_rate=o.recovery_rate, recovery_speed=o.recovery_speed,

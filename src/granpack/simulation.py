@@ -96,10 +96,11 @@ def initial_state(config: RunConfig, progress: bool = False,
     population = mixture.particle_populations(rng)
     kind = mixture.particle_kinds(population)
     radii = shapes.radius[kind]
-    centres = deposit(radii, config.lateral_size, rng, lateral=config.deposit.lateral,
-                      method=config.deposit.method, progress=progress)
+    box = Box.square(config.lateral_size, config.container.shape)
+    lateral = {"periodic": config.deposit.lateral, "box": "walls", "cylinder": "cylinder"}[box.container]
+    centres = deposit(radii, config.lateral_size, rng, lateral=lateral, method=config.deposit.method,
+                      progress=progress)
     quaternion = random_quaternions(len(population), rng)
-    box = Box.square(config.lateral_size)
     state = ParticleState(box=box, shapes=shapes, kind=kind, population=population,
                           position=box.wrap(centres), quaternion=quaternion)
     return state, mixture
@@ -144,7 +145,8 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture,
         raise InputError(f"{path}: made with other settings than the config given: {differences}; resume with "
                          f"{out_dir / CONFIG_FILE} (or those settings), or replace the run with --overwrite")
     s = saved.state
-    state = ParticleState(box=Box.square(config.lateral_size), shapes=mixture.particle_shape_table(), kind=s.kind,
+    state = ParticleState(box=Box.square(config.lateral_size, config.container.shape),
+                          shapes=mixture.particle_shape_table(), kind=s.kind,
                           population=s.population, position=s.position, quaternion=s.quaternion,
                           velocity=s.velocity, omega=s.omega, time=s.time)
     try:
@@ -294,6 +296,7 @@ def _summary(config: RunConfig, run: Settling, status: str) -> dict:
         "status": status,
         "seed": config.seed,
         "n_particles": state.n,
+        "container": state.box.to_dict(),
         "steps": m.step,
         "simulated_time": state.time,
         "time_step": config.time_stepping.time_step,

@@ -1,8 +1,10 @@
 """Geometric sequential deposition of spheres (the shells of the pluviation) in a vertical box.
 
 Box (owned here for the deposit only): square cross-section ``[0, L] x [0, L]``, floor ``z = 0``,
-open top, either lateral walls at ``x = 0, L`` and ``y = 0, L`` or periodic in x and y with
-period ``L`` (then centres are returned wrapped into ``[0, L)``, as in :mod:`granpack.box`).
+open top, either lateral walls at ``x = 0, L`` and ``y = 0, L``, or periodic in x and y with
+period ``L`` (then centres are returned wrapped into ``[0, L)``, as in :mod:`granpack.box`), or
+a vertical cylinder of diameter ``L`` about ``(L/2, L/2)``, for the deposit the regular polygon of
+64 vertical planes inscribed in it (:func:`~granpack.deposit.geometry.wall_table`).
 Lengths are in the caller's unit (d in granpack). Gravity is ``-e_z``.
 
 Two rules (docs/method/pluviation.md), both sequential: spheres are placed one by one in the

@@ -41,13 +41,13 @@ def _support_status(sid, skx, sky, sact, ns, ident, kx, ky):
 
 @jit
 def _arc_first_contact(
-    radius, cc, rc, f1, f2, tmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+    radius, cc, rc, f1, f2, tmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax,
     sid, skx, sky, sact, ns, out_i, out_k, pl, lo, hi, hit,
 ):
     """First contact along the arc ``cc + rc (cos t f1 + sin t f2)``, ``0 <= t <= tmax``.
 
     Candidates are the sphere images in the bounding box of the arc grown by ``R + R_max`` and the
-    planes; active supports are skipped and inactive (just released) ones only count after
+    planes of ``walls`` (:func:`~granpack.deposit.geometry.wall_table`); active supports are skipped and inactive (just released) ones only count after
     ``t > EPS_T``. Writes ``hit = (id, kx, ky)`` (``id`` = ``NO_HIT`` if none) and returns the
     contact parameter (``tmax`` if none) or -1.0 if the candidate buffers overflowed.
     """
@@ -73,7 +73,7 @@ def _arc_first_contact(
         return -1.0
     best = tmax
     hit[0] = NO_HIT
-    npl = 1 if periodic else 5
+    npl = walls.shape[0]
     # spheres (q < m), then planes (pid = -1 - (q - m))
     for q in range(m + npl):
         if q < m:
@@ -93,7 +93,7 @@ def _arc_first_contact(
                 pos[j, 0] + kx * lsize, pos[j, 1] + ky * lsize, pos[j, 2], radius + rad[j], cc, rc, f1, f2
             )
         else:
-            plane(j, radius, lsize, pl)
+            plane(j, radius, walls, pl)
             a, b, c = plane_on_arc(pl, cc, rc, f1, f2)
         t = first_entry(a, b, c, lower, best)
         if t < best:
@@ -168,11 +168,12 @@ def _release_angle(ak, bk, uz, s, top, psi):
 
 @jit
 def drop_one(
-    radius, x0, y0, z0, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+    radius, x0, y0, z0, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax,
     out_i, out_k, lo, hi, p,
 ):
     """Drop-and-roll of one sphere released at ``(x0, y0, z0)``; writes its resting centre
-    (unwrapped) to ``p`` (``lo``, ``hi``: scratch (3,)).
+    (unwrapped) to ``p`` (``lo``, ``hi``: scratch (3,); ``walls``: the planes,
+    :func:`~granpack.deposit.geometry.wall_table`).
 
     The supports (at most 4) are kept in ``sid``, ``skx``, ``sky`` (the id of a sphere or plane
     and its periodic image), ``sact`` (active in the current motion) and ``skind``, ``sc``,
@@ -221,7 +222,7 @@ def drop_one(
                 return status
             t = _arc_first_contact(
                 radius, cc, rc, f1, f2, tmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize,
-                periodic, rmax, sid, skx, sky, sact, ns, out_i, out_k, pl, lo, hi, hit,
+                periodic, walls, rmax, sid, skx, sky, sact, ns, out_i, out_k, pl, lo, hi, hit,
             )
             if t < 0.0:
                 return -1
@@ -233,7 +234,7 @@ def drop_one(
                 skip = release
                 continue
         # append the contact found by the motion
-        ns = _add_support(ns, hit, radius, pos, rad, lsize, pl, sid, skx, sky, skind, sc, sv)
+        ns = _add_support(ns, hit, radius, pos, rad, lsize, walls, pl, sid, skx, sky, skind, sc, sv)
     return 0
 
 
@@ -358,9 +359,9 @@ def _keep_active(ns, release, sact, sid, skx, sky, skind, sc, sv):
 
 
 @jit(inline="always")
-def _add_support(ns, hit, radius, pos, rad, lsize, pl, sid, skx, sky, skind, sc, sv):
+def _add_support(ns, hit, radius, pos, rad, lsize, walls, pl, sid, skx, sky, skind, sc, sv):
     """Append the contact ``hit = (id, kx, ky)`` (a sphere image of the deposit, or a plane
-    ``id < 0``) to the ``ns`` supports of the sphere of radius ``radius`` (d); returns ``ns + 1``
+    ``id < 0`` of ``walls``) to the ``ns`` supports of the sphere of radius ``radius`` (d); returns ``ns + 1``
     (``pl``: scratch (4,))."""
     j = hit[0]
     sid[ns] = j
@@ -370,6 +371,6 @@ def _add_support(ns, hit, radius, pos, rad, lsize, pl, sid, skx, sky, skind, sc,
         set_sphere(ns, pos[j, 0] + hit[1] * lsize, pos[j, 1] + hit[2] * lsize, pos[j, 2], radius + rad[j], skind, sc,
                    sv)
     else:
-        plane(j, radius, lsize, pl)
+        plane(j, radius, walls, pl)
         set_plane(ns, pl, skind, sc, sv)
     return ns + 1

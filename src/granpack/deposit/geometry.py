@@ -5,8 +5,11 @@
   sphere support is one periodic image of a deposited sphere ``j``: centre ``c`` (image shift
   included) and contact distance ``D = R + R_j``; the constraint is ``|p - c| >= D`` and its unit
   normal at contact is ``n = (p - c) / D``. A plane support has a unit normal ``n`` pointing into
-  the admissible region and an offset ``h``; the constraint is ``n . p >= h``. Plane ids:
-  ``FLOOR`` (``z >= R``), ``X_LO`` (``x >= R``), ``X_HI`` (``x <= L - R``), ``Y_LO``, ``Y_HI``.
+  the admissible region and an offset ``h``; the constraint is ``n . p >= h``. The planes of a
+  deposit are the rows of its ``walls`` table (:func:`wall_table`), plane id ``-1 - row``:
+  ``FLOOR`` (``z >= R``), then with walls ``X_LO`` (``x >= R``), ``X_HI`` (``x <= L - R``),
+  ``Y_LO``, ``Y_HI``, or in a cylinder the sides of the regular polygon of
+  ``CYLINDER_SIDES`` sides inscribed in it (a sphere inside the polygon is inside the cylinder).
   A list of supports is stored as ``kind`` (0 sphere, 1 plane), ``sc`` (centre, or normal) and
   ``sv`` (``D``, or ``h``).
 * Every motion or candidate set of ``p`` is a vertical segment ``p0 - t e_z`` or a circular arc
@@ -31,37 +34,41 @@ import numpy as np
 from granpack._numba import jit
 
 FLOOR = -1
-X_LO = -2
-X_HI = -3
-Y_LO = -4
-Y_HI = -5
 
 LAMBDA_TOL = 1e-12  # multipliers at or below this are inactive
 STABLE_TOL = 1e-9  # |e_z - sum lambda n| below this: the sphere is held
 OVERLAP_TOL = 1e-9  # accepted overlap, in d
+#: sides of the regular polygon inscribed in a cylinder that holds the deposit's spheres: it is
+#: at most ``R (1 - cos(pi / 64)) = 1.2e-3 R`` inside the cylinder of radius R
+CYLINDER_SIDES = 64
+
+
+def wall_table(lateral: str, lsize: float) -> np.ndarray:
+    """``(K, 4)`` the planes of a deposit, one row ``(n_x, n_y, n_z, h_0)`` each (the centre of a
+    sphere of radius R must have ``n . p >= h_0 + R``): the floor, then ``"walls"``: x = 0, x = L,
+    y = 0, y = L; ``"cylinder"``: the ``CYLINDER_SIDES`` sides of the regular polygon inscribed in
+    the cylinder of axis ``(L/2, L/2)`` and diameter L (apothem ``L/2 cos(pi / K)``);
+    ``"periodic"``: the floor alone. Lengths in d."""
+    rows = [(0.0, 0.0, 1.0, 0.0)]
+    if lateral == "walls":
+        rows += [(1.0, 0.0, 0.0, 0.0), (-1.0, 0.0, 0.0, -lsize), (0.0, 1.0, 0.0, 0.0), (0.0, -1.0, 0.0, -lsize)]
+    elif lateral == "cylinder":
+        apothem = 0.5 * lsize * math.cos(math.pi / CYLINDER_SIDES)
+        for k in range(CYLINDER_SIDES):
+            ux, uy = math.cos(2.0 * math.pi * k / CYLINDER_SIDES), math.sin(2.0 * math.pi * k / CYLINDER_SIDES)
+            rows.append((-ux, -uy, 0.0, -(ux + uy) * 0.5 * lsize - apothem))
+    return np.array(rows, dtype=np.float64)
 
 
 @jit
-def plane(pid, radius, lsize, out):
-    """Unit inward normal (``out[:3]``) and offset (``out[3]``) of plane ``pid`` for radius ``R``."""
-    out[0] = 0.0
-    out[1] = 0.0
-    out[2] = 0.0
-    if pid == FLOOR:
-        out[2] = 1.0
-        out[3] = radius
-    elif pid == X_LO:
-        out[0] = 1.0
-        out[3] = radius
-    elif pid == X_HI:
-        out[0] = -1.0
-        out[3] = radius - lsize
-    elif pid == Y_LO:
-        out[1] = 1.0
-        out[3] = radius
-    elif pid == Y_HI:
-        out[1] = -1.0
-        out[3] = radius - lsize
+def plane(pid, radius, walls, out):
+    """Unit inward normal (``out[:3]``) and offset (``out[3]``) of plane ``pid`` (row ``-1 - pid``
+    of the ``walls`` table, :func:`wall_table`) for radius ``R``."""
+    row = -1 - pid
+    out[0] = walls[row, 0]
+    out[1] = walls[row, 1]
+    out[2] = walls[row, 2]
+    out[3] = walls[row, 3] + radius
 
 
 @jit
@@ -324,13 +331,11 @@ def held(p, kind, sc, sv, ns, nrm):
 
 
 @jit
-def inside_box(radius, q, lsize, periodic, tol):
-    """True if a sphere of radius ``R`` at ``q`` lies above the floor and, with walls, between
-    them, within ``tol``."""
-    if q[2] < radius - tol:
-        return False
-    if periodic:
-        return True
-    return not (
-        q[0] < radius - tol or q[0] > lsize - radius + tol or q[1] < radius - tol or q[1] > lsize - radius + tol
-    )
+def inside_box(radius, q, walls, tol):
+    """True if a sphere of radius ``R`` at ``q`` lies on the admissible side of every plane of
+    ``walls`` (:func:`wall_table`: above the floor, inside the walls or the cylinder's polygon),
+    within ``tol``."""
+    for row in range(walls.shape[0]):
+        if walls[row, 0] * q[0] + walls[row, 1] * q[1] + walls[row, 2] * q[2] < walls[row, 3] + radius - tol:
+            return False
+    return True

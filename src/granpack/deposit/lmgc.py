@@ -70,7 +70,7 @@ def _references(i, radius, pos, rad, ncont):
 
 @jit
 def lmgc_one(
-    i, radius, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+    i, radius, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax,
     out_i, out_k, nbc, nbd, lo, hi, p,
 ):
     """Lowest admissible centre of sphere ``i`` touching a reference and two more supports.
@@ -80,11 +80,12 @@ def lmgc_one(
     (``|c_k - c_j| < D_j + D_k``) go to ``nbc``/``nbd``; then for each second support (plane or
     neighbour) the circle of centres touching ``j`` and it is cut with each third support (both
     roots of ``A + B cos t + C sin t = 0``). Writes the centre to ``p`` and returns 1, 0 if no
-    such position exists, -1 on buffer overflow (``lo``, ``hi``: scratch (3,)).
+    such position exists, -1 on buffer overflow (``lo``, ``hi``: scratch (3,); the planes are those
+    of ``walls``, :func:`~granpack.deposit.geometry.wall_table`).
     """
     refs, bound = _references(i, radius, pos, rad, ncont)
     best = math.inf
-    npl = 1 if periodic else 5
+    npl = walls.shape[0]
     tol = OVERLAP_TOL * 2.0 * rmax
     circ = np.empty(11)
     pl = np.empty(4)
@@ -122,7 +123,7 @@ def lmgc_one(
         # second support: a plane (index -1-a) or a neighbour (index b >= 0); third: after it
         for second in range(-npl, nn):
             if second < 0:
-                plane(second, radius, lsize, pl)
+                plane(second, radius, walls, pl)
                 if abs(pl[0] * cj[0] + pl[1] * cj[1] + pl[2] * cj[2] - pl[3]) >= dj:
                     continue
                 set_plane(1, pl, kind, sc, sv)
@@ -145,7 +146,7 @@ def lmgc_one(
                 elif 0 <= third <= second:
                     continue
                 if third < 0:
-                    plane(third, radius, lsize, pl)
+                    plane(third, radius, walls, pl)
                     ca, cb, ccs = plane_on_arc(pl, circ, rc, e1, e2)
                 else:
                     ca, cb, ccs = sphere_on_arc(nbc[third, 0], nbc[third, 1], nbc[third, 2], nbd[third], circ, rc, e1, e2)
@@ -159,7 +160,7 @@ def lmgc_one(
                 ac = math.acos(qq)
                 for sign in (-1.0, 1.0):
                     arc_point(circ, rc, e1, e2, psi + sign * ac, q)
-                    if q[2] >= best or not inside_box(radius, q, lsize, periodic, tol):
+                    if q[2] >= best or not inside_box(radius, q, walls, tol):
                         continue
                     # no overlap: any sphere overlapping q is a neighbour of j (|c - c_j| < D_j + D)
                     clear = True

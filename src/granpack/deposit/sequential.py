@@ -16,7 +16,7 @@ import numpy as np
 
 from granpack._numba import jit
 from granpack.deposit.drop import drop_one
-from granpack.deposit.geometry import OVERLAP_TOL, inside_box
+from granpack.deposit.geometry import CYLINDER_SIDES, OVERLAP_TOL, inside_box, wall_table
 from granpack.deposit.grid import gather_ball, grid_build, grid_insert
 from granpack.deposit.lmgc import count_contacts, lmgc_one
 
@@ -49,8 +49,10 @@ def deposit(
         lateral_size: side ``L`` of the square cross-section, in d; at least the largest diameter.
         rng: random generator; it draws the release points (2 numbers per attempt, in chunks),
             so the same seed gives identical centres.
-        lateral: ``"walls"`` (planes ``x = 0, L``, ``y = 0, L``) or ``"periodic"`` (period ``L``
-            in x and y, centres wrapped into ``[0, L)``).
+        lateral: ``"walls"`` (planes ``x = 0, L``, ``y = 0, L``), ``"periodic"`` (period ``L``
+            in x and y, centres wrapped into ``[0, L)``) or ``"cylinder"`` (inside a vertical
+            cylinder of diameter ``L`` and axis ``(L/2, L/2)``: inside the regular polygon of
+            ``CYLINDER_SIDES`` sides inscribed in it, :func:`~granpack.deposit.geometry.wall_table`).
         method: ``"drop"`` (drop-and-roll) or ``"lmgc"`` (lowest three-support position);
             see :mod:`granpack.deposit`.
         progress: ``None``/``False`` (quiet, default), ``True`` (a rich progress bar) or a
@@ -67,6 +69,9 @@ def deposit(
         RuntimeError: a sphere could not be placed in ``MAX_ATTEMPTS`` release attempts.
     """
     rad, lsize, periodic, lmgc = _validate(radii, lateral_size, rng, lateral, method)
+    walls = wall_table(lateral, lsize)
+    # release points of a cylinder: in the disc of the polygon's apothem
+    disc = 0.5 * lsize * math.cos(math.pi / CYLINDER_SIDES) if lateral == "cylinder" else 0.0
     n = rad.shape[0]
     rmax = float(rad.max())
     dmax = 2.0 * rmax
@@ -75,7 +80,8 @@ def deposit(
     nx = max(1, int(lsize // dmax))
     hxy = lsize / nx
     hz = dmax
-    height = (4.0 / 3.0) * math.pi * float(np.sum(rad**3)) / (lsize * lsize * _INITIAL_FRACTION)
+    area = 0.25 * math.pi * lsize * lsize if lateral == "cylinder" else lsize * lsize
+    height = (4.0 / 3.0) * math.pi * float(np.sum(rad**3)) / (area * _INITIAL_FRACTION)
     nz = int(height / hz) + 3
     head = np.full(nx * nx * nz, -1, dtype=np.int64)
     nxt = np.full(n, -1, dtype=np.int64)
@@ -100,7 +106,7 @@ def deposit(
             uni = rng.random((stop - done + MAX_ATTEMPTS, 2))
             nxt_i, _, top, status = deposit_chunk(
                 lmgc, pos, rad, ncont, done, stop, uni, head, nxt, nx, nx, nz, hxy, hz, lsize,
-                periodic, rmax, top, out_i, out_k, nbc, nbd,
+                periodic, walls, disc, rmax, top, out_i, out_k, nbc, nbd,
             )
             done = nxt_i
             if status == STATUS_FAILED:
@@ -134,8 +140,8 @@ def _validate(radii, lateral_size, rng, lateral, method):
         )
     if not isinstance(rng, np.random.Generator):
         raise ValueError(f"deposit: rng must be a numpy.random.Generator, got {type(rng).__name__}")
-    if lateral not in ("walls", "periodic"):
-        raise ValueError(f"deposit: lateral must be 'walls' or 'periodic', got {lateral!r}")
+    if lateral not in ("walls", "periodic", "cylinder"):
+        raise ValueError(f"deposit: lateral must be 'walls', 'periodic' or 'cylinder', got {lateral!r}")
     if method not in ("drop", "lmgc"):
         raise ValueError(f"deposit: method must be 'drop' or 'lmgc', got {method!r}")
     return np.ascontiguousarray(rad), lsize, lateral == "periodic", method == "lmgc"
@@ -168,11 +174,13 @@ class _progress_reporter:
 
 
 @jit
-def admissible(radius, q, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax, out_i, out_k, lo, hi):
-    """Whether a sphere of radius ``R`` at ``q`` lies in the box and overlaps no deposited sphere
-    by more than ``OVERLAP_TOL d``: 1 (admissible), 0 (not) or -1 (buffer overflow)."""
+def admissible(radius, q, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax, out_i, out_k, lo,
+               hi):
+    """Whether a sphere of radius ``R`` at ``q`` lies inside the planes ``walls`` and overlaps no
+    deposited sphere by more than ``OVERLAP_TOL d``: 1 (admissible), 0 (not) or -1 (buffer
+    overflow)."""
     tol = OVERLAP_TOL * 2.0 * rmax
-    if not inside_box(radius, q, lsize, periodic, tol):
+    if not inside_box(radius, q, walls, tol):
         return 0
     m = gather_ball(q, radius + rmax, lo, hi, pos, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, out_i, out_k)
     if m < 0:
@@ -189,7 +197,7 @@ def admissible(radius, q, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, perio
 
 @jit
 def deposit_chunk(
-    lmgc, pos, rad, ncont, start, stop, uni, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+    lmgc, pos, rad, ncont, start, stop, uni, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, disc, rmax,
     top, out_i, out_k, nbc, nbd,
 ):
     """Place spheres ``start .. stop-1`` in order; each drop attempt consumes a row of ``uni``
@@ -197,7 +205,9 @@ def deposit_chunk(
 
     ``lmgc`` selects the LMGC90 rule (drop-and-roll is then used only where it finds no
     three-support position: the first spheres). With lateral walls the release point is
-    ``(R + u_0 (L - 2R), R + u_1 (L - 2R))``, periodic ``(u_0 L, u_1 L)``; the release height is
+    ``(R + u_0 (L - 2R), R + u_1 (L - 2R))``, periodic ``(u_0 L, u_1 L)``, in a cylinder (``disc``
+    > 0, the apothem of its polygon ``walls``) uniform in the disc of radius ``disc - R`` about
+    the axis, ``(L/2, L/2) + (disc - R) sqrt(u_0) (cos 2 pi u_1, sin 2 pi u_1)``; the release height is
     ``top + R + 0.01 d`` with ``top`` the highest point of the deposit. Accepted centres (x, y
     wrapped when periodic) go to ``pos`` and the grid.
 
@@ -216,7 +226,7 @@ def deposit_chunk(
         placed = 0
         if lmgc and i > 0:
             placed = lmgc_one(
-                i, radius, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+                i, radius, pos, rad, ncont, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax,
                 out_i, out_k, nbc, nbd, lo, hi, p,
             )
             if placed < 0:
@@ -230,6 +240,10 @@ def deposit_chunk(
             if periodic:
                 x0 = uni[used, 0] * lsize
                 y0 = uni[used, 1] * lsize
+            elif disc > 0.0:
+                rho = (disc - radius) * math.sqrt(uni[used, 0])
+                x0 = 0.5 * lsize + rho * math.cos(2.0 * math.pi * uni[used, 1])
+                y0 = 0.5 * lsize + rho * math.sin(2.0 * math.pi * uni[used, 1])
             else:
                 x0 = radius + uni[used, 0] * (lsize - 2.0 * radius)
                 y0 = radius + uni[used, 1] * (lsize - 2.0 * radius)
@@ -237,13 +251,13 @@ def deposit_chunk(
             attempts += 1
             ok = drop_one(
                 radius, x0, y0, top + radius + 0.01 * dmax, pos, rad, head, nxt, nx, ny, nz, hxy, hz,
-                lsize, periodic, rmax, out_i, out_k, lo, hi, p,
+                lsize, periodic, walls, rmax, out_i, out_k, lo, hi, p,
             )
             if ok < 0:
                 return i, used, top, STATUS_BUFFER
             if ok == 1:
                 placed = admissible(
-                    radius, p, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, rmax,
+                    radius, p, pos, rad, head, nxt, nx, ny, nz, hxy, hz, lsize, periodic, walls, rmax,
                     out_i, out_k, lo, hi,
                 )
                 if placed < 0:

@@ -5,7 +5,7 @@ gravity (``StepParameters.gravity``, ``(0, 0, -1)``) and the explicit gyroscopic
 detected on the predicted configuration ``x^{TT} = x^n + (1-θ) h v^n`` (periodic images carried
 by the contacts' shifts); the contact problem (:mod:`granpack.nscd.problem`) solved by NLGS
 (:mod:`granpack.nscd.nlgs`) from the previous step's impulses (:mod:`granpack.nscd.warmstart`); then
-``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into the cell.
+``x^{n+1} = x^{TT} + θ h v^{n+1} + δx`` and positions wrapped into a periodic cell.
 
 Position correction (docs: Method > Overlap recovery and position correction). The velocity law
 pushes back overlaps deeper than ``recovery_slop`` at a bounded speed (:mod:`granpack.nscd.problem`);
@@ -93,7 +93,9 @@ class StepParameters:
         rotation_from_start: the end orientation is the start one turned by ``h ω^{n+1}``
             (``time_stepping.rotation_update = "from-start"``, :func:`granpack.nscd.rigid.update_kernel`);
             otherwise ``q^TT`` turned by ``θ h ω^{n+1}``, the θ scheme.
-        friction: Coulomb μ >= 0 (0: frictionless kernel).
+        friction: Coulomb μ >= 0 between grains (0: frictionless kernel).
+        wall_friction: Coulomb μ >= 0 against the walls (the floor and a container's walls);
+            ``None``: ``friction`` (a run's ``container.wall_friction``).
         restitution: normal restitution e_N in [0, 1].
         tolerance: NLGS 'Quad' norm tolerance.
         max_iterations: NLGS sweep budget per solve.
@@ -138,6 +140,7 @@ class StepParameters:
     theta: float = 0.5
     rotation_from_start: bool = False
     friction: float = 0.0
+    wall_friction: float | None = None
     restitution: float = 0.0
     tolerance: float = 1e-4
     max_iterations: int = 2000
@@ -165,6 +168,8 @@ class StepParameters:
             raise ValueError(f"theta must be in [0.5, 1], got {self.theta}")
         if not self.friction >= 0:
             raise ValueError(f"friction must be >= 0, got {self.friction}")
+        if self.wall_friction is not None and not self.wall_friction >= 0:
+            raise ValueError(f"wall_friction must be >= 0, got {self.wall_friction}")
         if not 0.0 <= self.restitution <= 1.0:
             raise ValueError(f"restitution must be in [0, 1], got {self.restitution}")
         if not self.alert >= 0 or not self.overlap_slop >= 0 or not self.warm_tolerance >= 0:
@@ -304,6 +309,7 @@ def advance(
     problem = assemble(
         contacts, pr.x_tt, pr.inv_mass, pr.inv_inertia_world, pr.start_velocity, pr.free_velocity, h,
         restitution=params.restitution, friction=params.friction,
+        wall_friction=params.wall_friction,
         side=_sides(pr.x_tt, contacts.point[:, 2]) if contacts.n_points >= params.parallel_points else None,
         recovery_slop=params.recovery_slop, recovery_rate=params.recovery_rate, recovery_speed=params.recovery_speed,
         slow_recovery_slop=params.slow_recovery_slop, slow_recovery_speed=params.slow_recovery_speed,
@@ -313,6 +319,7 @@ def advance(
     r0, n_warm = warm_impulses(
         warm, contacts, problem.tangent, pr.x_tt, pr.rot_tt, state.velocity, state.omega, h,
         (state.box.lx, state.box.ly), tol_warm, params.friction,
+        params.friction if params.wall_friction is None else params.wall_friction,
     )
     if warm_time_step is not None and warm_time_step != h:
         r0 *= h / float(warm_time_step)
@@ -333,7 +340,7 @@ def advance(
             correction_energy = float(np.sum(state.mass * displacement[:-1, 2]))
     update_kernel.sized(state.n)(
         pr.x_tt, pr.state.quaternion, pr.rot_tt, v_end, displacement, h, theta, params.rotation_from_start,
-        state.box.lx, state.box.ly,
+        state.box.lx, state.box.ly, state.box.periodic,
         state.position, state.quaternion, state.velocity, state.omega, thread_count(),
     )
     damped_energy = 0.0

@@ -28,7 +28,8 @@ point α (frozen at the predicted configuration of the step)
   factor, its smaller grain's size over the largest grain's when the slops are scaled by the pair
   (:func:`body_slop_scale`), else 1,
 
-- the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation),
+- the friction coefficient μ_α (Coulomb: ``|r_T| <= μ r_n``, maximal dissipation): the grains'
+  μ between grains, the walls' against a wall,
 - the free velocities ``V_free`` ``(N + 1, 6)`` (world rows ``(v, ω^w)``, see
   :mod:`granpack.nscd.rigid`) and the warm-start impulses.
 
@@ -219,7 +220,7 @@ def _assemble_kernel(
                 f[WBLK], f[WBLK + 1], f[WBLK + 2] = w_nn, w_tt, w_ss
                 f[WBLK + 3], f[WBLK + 4], f[WBLK + 5] = w_nt, w_ns, w_ts
                 f[RHOT] = 1.0 / max(w_tt, w_ss)
-                f[MU] = mu
+                f[MU] = mu[0] if body_j[m] >= 0 else mu[1]
 
 
 @jit
@@ -444,6 +445,7 @@ def assemble(
     *,
     restitution: float = 0.0,
     friction: float = 0.0,
+    wall_friction: float | None = None,
     initial_impulse: np.ndarray | None = None,
     side: np.ndarray | None = None,
     recovery_slop: float = 0.0,
@@ -465,7 +467,10 @@ def assemble(
         free_velocity: ``(N + 1, 6)`` world free velocities.
         time_step: h, sqrt(d/g).
         restitution: e_N in [0, 1].
-        friction: Coulomb μ >= 0; 0 builds a frictionless problem (no tangential data).
+        friction: Coulomb μ >= 0 between grains; 0 (with a frictionless wall) builds a frictionless
+            problem (no tangential data).
+        wall_friction: Coulomb μ >= 0 of the points against a wall (``body_j < 0``: the floor and
+            a container's walls); ``None``: ``friction``.
         initial_impulse: ``(P, 3)`` local warm-start impulses, zeros if ``None``.
         recovery_slop, recovery_rate, recovery_speed: ``s_r`` (d), β and ``v_r`` (sqrt(g d)) of the
             overlap recovery (module docstring); ``recovery_rate`` 0: none.
@@ -480,7 +485,8 @@ def assemble(
         The :class:`ContactProblem`.
     """
     p = contacts.n_points
-    with_friction = friction > 0.0
+    mu = np.array([friction, friction if wall_friction is None else wall_friction], dtype=np.float64)
+    with_friction = bool(mu.max() > 0.0)
     body = np.empty((p, 2), np.int64)
     data = np.empty((p, NORMAL_WIDTH))
     offset = np.empty(p)
@@ -503,7 +509,7 @@ def assemble(
         start_velocity,
         float(time_step),
         float(restitution),
-        float(friction),
+        mu,
         body,
         data,
         offset,

@@ -158,9 +158,10 @@ def _predict_bodies(p0, p1, position, quaternion, velocity, omega, inertia, h, t
 
 
 @jit(parallel=True)
-def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, position, quaternion, velocity,
-                  omega, chunks):
-    """Numba: end-of-step positions, orientations and velocities, positions wrapped in x, y.
+def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, periodic, position, quaternion,
+                  velocity, omega, chunks):
+    """Numba: end-of-step positions, orientations and velocities, positions wrapped in x, y in a
+    periodic cell (``periodic``; a box or a cylinder holds its grains, nothing is wrapped).
 
     The end orientation is ``q^TT`` turned by ``θ h ω^{n+1}``; with ``from_start`` it is ``q^n``
     turned by ``h ω^{n+1}`` instead (``time_stepping.rotation_update = "from-start"``), which differs
@@ -172,7 +173,7 @@ def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start,
         displacement: ``(N + 1, 6)`` world position correction ``(δx, δφ)``, d and radians.
         h, theta: time step and θ.
         from_start: turn the orientation at t_n by ``h ω^{n+1}`` (see above).
-        lx, ly: periods of the cell, d.
+        lx, ly: periods of the cell, d; periodic: wrap the positions (else lx, ly unused).
         position, quaternion, velocity, omega: state arrays, overwritten (omega body frame).
         chunks: consecutive ranges of bodies computed at once (threads); the result does not
             depend on it.
@@ -180,12 +181,12 @@ def update_kernel(x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start,
     n = position.shape[0]
     for c in prange(chunks):
         _update_bodies(n * c // chunks, n * (c + 1) // chunks, x_tt, q_tt, rot_tt, v_end, displacement, h, theta,
-                       from_start, lx, ly, position, quaternion, velocity, omega)
+                       from_start, lx, ly, periodic, position, quaternion, velocity, omega)
 
 
 @jit
-def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, position, quaternion,
-                   velocity, omega):
+def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, from_start, lx, ly, periodic, position,
+                   quaternion, velocity, omega):
     """Numba: :func:`update_kernel` for the bodies ``p0 <= p < p1``."""
     b = theta * h
     phi = np.empty(3)
@@ -210,10 +211,11 @@ def _update_bodies(p0, p1, x_tt, q_tt, rot_tt, v_end, displacement, h, theta, fr
             q = quat_integrate_body_nb(q_tt[p], phi)
         for k in range(4):
             quaternion[p, k] = q[k]
-        x = position[p, 0] - lx * np.floor(position[p, 0] / lx)
-        y = position[p, 1] - ly * np.floor(position[p, 1] / ly)
-        position[p, 0] = x if x < lx else 0.0
-        position[p, 1] = y if y < ly else 0.0
+        if periodic:
+            x = position[p, 0] - lx * np.floor(position[p, 0] / lx)
+            y = position[p, 1] - ly * np.floor(position[p, 1] / ly)
+            position[p, 0] = x if x < lx else 0.0
+            position[p, 1] = y if y < ly else 0.0
 
 
 def required_alert(state: ParticleState, time_step: float, minimum: float = 0.0) -> float:

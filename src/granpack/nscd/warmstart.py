@@ -1,7 +1,7 @@
 """Warm start: the previous step's impulses carried over to the same contacts (docs: Method > NSCD, warm start).
 
-Identity of a contact point: the same pair of bodies (in either candidate/antagonist order, the
-wall being body -1) and a contact point within ``tolerance`` of the previous one **in the body
+Identity of a contact point: the same pair of bodies (in either candidate/antagonist order, a
+wall being its negative id) and a contact point within ``tolerance`` of the previous one **in the body
 frame of the new candidate i**. The periodic image is implied by the pair, because the cell is
 more than twice the interaction range (docs: Method, the cell), so a pair whose shift changed only
 because one body was wrapped across the boundary keeps its impulses.
@@ -20,7 +20,9 @@ in the old body frame is
 position correction moved bodies by far less than the tolerance and is ignored here. Each old
 point is used at most once (nearest first). The old world impulse ``P`` (on the old candidate;
 sign flipped if the roles swapped) gives the local impulse ``(max(0, P·n), P·t, P·s)``, the
-tangential part clipped to the friction disc ``μ r_n``.
+tangential part clipped to the friction disc ``μ r_n`` (the grains' μ, or the walls' against a
+wall). A polyhedron has one manifold per vertex near a cylinder, so a new cylinder manifold takes
+the old one of the same grain whose point is nearest its own in the world frame.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from granpack._numba import MIN_PARALLEL_POINTS, jit, prange, thread_count
-from granpack.contact.contacts import ContactSet
+from granpack.contact.contacts import WALL_CYLINDER, ContactSet
 
 __all__ = ["warm_impulses"]
 
@@ -113,11 +115,19 @@ def _match(
         i, j = new_i[m], new_j[m]
         found = -1
         sign = 1.0
+        nearest = np.inf
         for e in range(start[i], start[i + 1]):
             o = listed[e]
             if old_i[o] == i and old_j[o] == j:
-                found = o
-                break
+                if j != WALL_CYLINDER:
+                    found = o
+                    break
+                q, k = old_start[o], new_start[m]
+                d2 = ((old_point[q, 0] - new_point[k, 0]) ** 2 + (old_point[q, 1] - new_point[k, 1]) ** 2
+                      + (old_point[q, 2] - new_point[k, 2]) ** 2)
+                if d2 < nearest:
+                    found, nearest = o, d2
+                continue
             if j >= 0 and old_i[o] == j and old_j[o] == i:
                 found = o
                 sign = -1.0
@@ -174,7 +184,7 @@ def _match(
             rn = max(0.0, p0 * normal[m, 0] + p1 * normal[m, 1] + p2 * normal[m, 2])
             rt = p0 * tangent[k, 0, 0] + p1 * tangent[k, 0, 1] + p2 * tangent[k, 0, 2]
             rs = p0 * tangent[k, 1, 0] + p1 * tangent[k, 1, 1] + p2 * tangent[k, 1, 2]
-            limit = mu * rn
+            limit = (mu[0] if j >= 0 else mu[1]) * rn
             norm = np.sqrt(rt * rt + rs * rs)
             if norm > limit:
                 scale = limit / norm
@@ -196,6 +206,7 @@ def warm_impulses(
     periods: tuple[float, float],
     tolerance: float,
     friction: float,
+    wall_friction: float | None = None,
 ) -> tuple[np.ndarray, int]:
     """Local warm-start impulses of the new contact points from the previous step's solution.
 
@@ -209,7 +220,8 @@ def warm_impulses(
         time_step: h, sqrt(d/g).
         periods: ``(lx, ly)``, d.
         tolerance: matching distance in the body frame, d.
-        friction: μ (the tangential part is clipped to ``μ r_n``).
+        friction: μ between grains (the tangential part is clipped to ``μ r_n``).
+        wall_friction: μ against a wall (``None``: ``friction``).
 
     Returns:
         ``((P, 3) local impulses, number of points matched)``.
@@ -238,7 +250,7 @@ def warm_impulses(
         float(periods[0]),
         float(periods[1]),
         float(tolerance),
-        float(friction),
+        np.array([friction, friction if wall_friction is None else wall_friction], dtype=np.float64),
         out,
         thread_count(),
     )
