@@ -86,6 +86,12 @@ BAD = {
     "friction-negative": (good_with("tolerance = 1e-4", "friction = -0.2"), "solver.friction: must be >= 0"),
     "restitution-above-1": (good_with("tolerance = 1e-4", "restitution = 1.2"), "solver.restitution: must be <= 1"),
     "restitution-negative": (good_with("tolerance = 1e-4", "restitution = -0.1"), "solver.restitution: must be >= 0"),
+    "container-shape": (GOOD + '\n[container]\nshape = "sphere"\n',
+                        "container.shape: must be 'periodic', 'box' or 'cylinder' (got 'sphere')"),
+    "cylinder-too-narrow": (good_with("lateral_size = 8.0", "lateral_size = 2.0") + '\n[container]\nshape = "cylinder"\n',
+                            "the cylinder holds two of the largest grains side by side"),
+    "box-too-narrow": (good_with("lateral_size = 8.0", "lateral_size = 2.0") + '\n[container]\nshape = "box"\n',
+                       "the box holds two grains side by side"),
 }
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import meshio
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -17,7 +18,10 @@ from granpack.box import Box
 from granpack.contact import SIMPLE, TRIPLE, ContactSet, detect
 from granpack.deposit import deposit
 from granpack.equilibrium import wall_force
+from granpack.io.gsd import read_packing, write_packing
+from granpack.io.vtk import write_vtk
 from granpack.nscd import StepParameters, step, total_energy
+from granpack.packing import Packing
 from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix, random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
 from granpack.state import ParticleState
@@ -298,3 +302,49 @@ def test_a_pile_poured_into_a_container_never_gains_energy_and_stays_inside(cont
     assert _outside(state) < 2e-3  # within the overlap the solver allows
     walls = set(np.unique(warm.body_j[warm.body_j < 0]).tolist())
     assert walls <= ({-1, -2, -3, -4, -5} if container == "box" else {-1, -6}) and len(walls) > 1
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs
+
+
+@pytest.mark.parametrize("container", ["box", "cylinder"])
+def test_gsd_and_vtk_carry_the_container(tmp_path, container):
+    state = _poured(container, n=60)
+    warm = run_steps(state, StepParameters(time_step=H), 300)
+    sides = set(warm.body_j[warm.body_j < -1].tolist())
+    assert sides and sides <= ({-2, -3, -4, -5} if container == "box" else {-6})
+    packing = Packing(state, warm, H, ["pinacoids"], {"seed": 3})
+    back = read_packing(write_packing(tmp_path / "final.gsd", packing))
+    assert back.box == state.box
+    np.testing.assert_array_equal(back.contacts.body_j, warm.body_j)
+    paths = write_vtk(back, tmp_path / "vtk")
+    assert [p.name for p in paths] == ["grains.vtu", "centres.vtu", "contacts.vtu", "container.vtu"]
+    mesh = meshio.read(tmp_path / "vtk" / "container.vtu")
+    walls = np.concatenate(mesh.cell_data["wall"])
+    assert set(walls.tolist()) == ({-1, -2, -3, -4, -5} if container == "box" else {-1, -6})
+    xy = mesh.points[:-1, :2]  # the floor's centre last
+    if container == "cylinder":
+        np.testing.assert_allclose(np.linalg.norm(xy - AXIS, axis=1), R_CYL, atol=1e-12)
+    else:
+        assert set(np.round(xy.ravel(), 12).tolist()) == {0.0, L}
+    # every contact line with a side wall goes from the centre along the normal to the wall's
+    # tangent plane at the contact
+    lines = meshio.read(tmp_path / "vtk" / "contacts.vtu")
+    ends = lines.points.reshape(-1, 2, 3)
+    side = warm.body_j < -1
+    first = warm.point_start[:-1][side]
+    n = warm.normal[side]
+    on_wall = warm.point[first] - 0.5 * warm.gap[first][:, None] * n
+    np.testing.assert_allclose(np.einsum("ij,ij->i", ends[side, 1] - on_wall, n), 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.cross(ends[side, 0] - ends[side, 1], n), 0.0, atol=1e-12)
+    if container == "box":
+        for wall in sides:
+            np.testing.assert_allclose(wall_height(wall, ends[warm.body_j == wall, 1]), 0.0, atol=1e-12)
+
+def test_a_periodic_packing_reads_back_periodic_and_writes_no_container(tmp_path):
+    state = state_of([Sphere(1.0)], [0], [[1.0, 1.0, 0.5]], [IDENTITY], "periodic")
+    packing = Packing(state, ContactSet.empty(), H, ["spheres"], {})
+    back = read_packing(write_packing(tmp_path / "final.gsd", packing))
+    assert back.box.container == "periodic"
+    assert [p.name for p in write_vtk(back, tmp_path / "vtk")] == ["grains.vtu", "centres.vtu", "contacts.vtu"]

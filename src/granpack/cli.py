@@ -156,6 +156,8 @@ def _settings_lines(cfg) -> list[str]:
             value, unit = getattr(model, key), unit_of(type(model), key)
             if key == "alert_distance" and value is None:
                 items.append(f"{key} {cfg.resolved_alert_distance:g} d (automatic)")
+            elif key == "wall_friction" and value is None:
+                items.append(f"{key} {cfg.solver.friction:g} (solver.friction)")
             else:
                 items.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
                 items[-1] += f" {unit}" if unit else ""

@@ -21,8 +21,12 @@ One frame per file. Layout:
   (float64, body frame).
 - Contacts (:class:`~granpack.contact.ContactSet` arrays, float64/int64):
   ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``.
-- Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}`` and
-  JSON text stored as uint8 arrays: ``log/granpack/shapes`` (the shape specs that rebuild the
+- Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}``
+  (``periodic`` ``(1, 1, 0)`` for a periodic cell, ``(0, 0, 0)`` in a box or a cylinder, whose
+  walls OVITO does not draw: the box's walls are the GSD box's sides, the cylinder is inscribed
+  in them; ``granpack vtk`` writes its surface) and JSON text stored as uint8 arrays:
+  ``log/granpack/container`` (:meth:`granpack.box.Box.to_dict`; absent in the files written
+  before containers: periodic), ``log/granpack/shapes`` (the shape specs that rebuild the
   :class:`~granpack.shapes.ShapeTable` exactly), ``log/granpack/population_names``,
   ``log/granpack/metadata``.
 
@@ -177,7 +181,8 @@ def _frame(packing: Packing) -> gsd.hoomd.Frame:
     log["granpack/lateral_size"] = np.array([box.lx, box.ly])
     log["granpack/time"] = np.array([state.time])
     log["granpack/time_step"] = np.array([packing.time_step])
-    log["granpack/periodic"] = np.array([1, 1, 0], dtype=np.uint8)
+    log["granpack/periodic"] = np.array([1, 1, 0] if box.periodic else [0, 0, 0], dtype=np.uint8)
+    log["granpack/container"] = _text(box.to_dict())
     log["granpack/wall"] = np.array([0.0, 0.0, 1.0, 0.0])  # plane n . x = 0, normal +z
     log["granpack/origin"] = origin
     log["granpack/position"] = state.position.astype(np.float64)
@@ -275,8 +280,9 @@ def _decode(frame: gsd.hoomd.Frame) -> Packing:
         built.append(shape_from_spec(spec, built))
     shapes = ShapeTable.from_shapes(built)
     lx, ly = (float(v) for v in log["granpack/lateral_size"])
+    container = _untext(log["granpack/container"])["shape"] if "granpack/container" in log else "periodic"
     state = ParticleState(
-        box=Box(lx, ly),
+        box=Box(lx, ly, container),
         shapes=shapes,
         kind=np.asarray(frame.particles.typeid if fmt == 1 else log["particles/kind"], dtype=np.int64).reshape(n),
         population=np.asarray(log["particles/population"], dtype=np.int64).reshape(n),

@@ -12,12 +12,21 @@
   frame), ``velocity`` (sqrt(g d)).
 - ``contacts.vtu``: the contact network, one line cell per manifold from the centre of ``i`` to
   the centre of ``j`` **through its periodic image** (``x_j + shift``, so lines never cross the
-  cell); wall contacts go from the centre down to its foot on the wall z = 0. Cell data:
-  ``body_i``, ``body_j`` (-1: wall), ``ctype`` (1 simple, 2 double, 3 triple), ``force``
+  cell); wall contacts go from the centre to its foot on the wall: on the floor z = 0 straight
+  down, on a container's wall along the contact's normal to the wall's tangent plane at the
+  contact (:meth:`granpack.packing.Packing.branch_vectors`). Cell data: ``body_i``, ``body_j``
+  (< 0: a wall, its id), ``ctype`` (1 simple, 2 double, 3 triple), ``force``
   (resultant on ``i``, vector), ``force_magnitude`` and ``normal_force`` (> 0 compressive), in
   units of rho g d^3 (``impulse / time_step``; density 1, g = 1).
 
-``contact_count`` is the number of contact manifolds of a grain, the wall included. Lengths are
+- ``container.vtu`` (a box or a cylinder only, :class:`granpack.box.Box`): the container's inside
+  surface as quads, from the floor z = 0 to 1 d above the highest grain (the height of the GSD
+  file's box): the floor (a fan of triangles) and the four walls of a box, or the floor and the
+  wall of a cylinder in ``CONTAINER_SEGMENTS`` facets; cell data ``wall`` (the wall's id, -1 the floor,
+  :mod:`granpack.contact.contacts`). ParaView shows it with the grains (opacity below 1 to see
+  inside).
+
+``contact_count`` is the number of contact manifolds of a grain, the walls included. Lengths are
 in d. Each file is written under a temporary name and renamed.
 """
 
@@ -40,6 +49,8 @@ __all__ = ["SurfaceMesh", "shape_surface", "grain_surfaces", "contact_counts", "
 
 #: meshio cell type of a polygon with k vertices
 _CELL_TYPE = {3: "triangle", 4: "quad"}
+#: facets of a cylinder's wall in ``container.vtu``
+CONTAINER_SEGMENTS = 96
 
 
 @dataclass(frozen=True)
@@ -202,6 +213,8 @@ def _contacts_mesh(packing: Packing) -> meshio.Mesh:
     x = packing.state.position
     start = x[c.body_i]
     end = np.where((c.body_j >= 0)[:, None], x[np.maximum(c.body_j, 0)] + c.shift, start * np.array([1.0, 1.0, 0.0]))
+    side = c.body_j < -1  # a container's wall: the foot along the normal (packing.branch_vectors)
+    end[side] = start[side] - packing.branch_vectors()[side]
     points = np.stack([start, end], axis=1).reshape(-1, 3)
     lines = np.arange(2 * c.n_manifolds, dtype=np.int64).reshape(-1, 2)
     force = packing.manifold_force
@@ -216,8 +229,30 @@ def _contacts_mesh(packing: Packing) -> meshio.Mesh:
     return meshio.Mesh(points, [("line", lines)], cell_data=data)
 
 
+def _container_mesh(packing: Packing) -> meshio.Mesh:
+    """The inside surface of a box or a cylinder, floor first (module docstring)."""
+    box, state = packing.box, packing.state
+    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
+    height = max(top, 0.0) + 1.0
+    if box.container == "cylinder":
+        angle = 2.0 * np.pi * np.arange(CONTAINER_SEGMENTS) / CONTAINER_SEGMENTS
+        ring = np.column_stack([0.5 * box.lx * (1.0 + np.cos(angle)), 0.5 * box.ly + 0.5 * box.lx * np.sin(angle)])
+    else:
+        ring = np.array([[0.0, 0.0], [box.lx, 0.0], [box.lx, box.ly], [0.0, box.ly]])
+    k = len(ring)
+    centre = [0.5 * box.lx, 0.5 * box.ly, 0.0]
+    points = np.vstack([np.column_stack([ring, np.zeros(k)]), np.column_stack([ring, np.full(k, height)]), [centre]])
+    a = np.arange(k)
+    floor = np.column_stack([np.full(k, 2 * k), a, (a + 1) % k])  # a fan of triangles about the centre
+    walls = np.column_stack([a, (a + 1) % k, (a + 1) % k + k, a + k])
+    # the box's walls y = 0, x = L, y = L, x = 0 in ring order; the cylinder's facets all -6
+    wall_id = np.array([-4, -3, -5, -2]) if box.container == "box" else np.full(k, -6)
+    return meshio.Mesh(points, [("triangle", floor), ("quad", walls)], cell_data={"wall": [np.full(k, -1), wall_id]})
+
+
 def write_vtk(packing: Packing, out_dir: str | os.PathLike, *, sphere_segments: int = 16) -> list[Path]:
-    """Write ``grains.vtu``, ``centres.vtu`` and ``contacts.vtu`` (see module docstring).
+    """Write ``grains.vtu``, ``centres.vtu``, ``contacts.vtu`` and for a box or a cylinder
+    ``container.vtu`` (see module docstring).
 
     Args:
         packing: the packing.
@@ -230,8 +265,11 @@ def write_vtk(packing: Packing, out_dir: str | os.PathLike, *, sphere_segments: 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     counts = contact_counts(packing)
-    return [
+    written = [
         _write(_grains_mesh(packing, counts, sphere_segments), out / "grains.vtu"),
         _write(_centres_mesh(packing, counts), out / "centres.vtu"),
         _write(_contacts_mesh(packing), out / "contacts.vtu"),
     ]
+    if not packing.box.periodic:
+        written.append(_write(_container_mesh(packing), out / "container.vtu"))
+    return written
