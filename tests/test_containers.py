@@ -15,13 +15,16 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from granpack.box import Box
+from granpack.config import load_config_dict
 from granpack.contact import SIMPLE, TRIPLE, ContactSet, detect
 from granpack.deposit import deposit
 from granpack.equilibrium import wall_force
 from granpack.io.gsd import read_packing, write_packing
+from granpack.io.json import read_json
 from granpack.io.vtk import write_vtk
 from granpack.nscd import StepParameters, step, total_energy
 from granpack.packing import Packing
+from granpack.simulation import run_packing
 from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix, random_quaternions
 from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
 from granpack.state import ParticleState
@@ -348,3 +351,24 @@ def test_a_periodic_packing_reads_back_periodic_and_writes_no_container(tmp_path
     back = read_packing(write_packing(tmp_path / "final.gsd", packing))
     assert back.box.container == "periodic"
     assert [p.name for p in write_vtk(back, tmp_path / "vtk")] == ["grains.vtu", "centres.vtu", "contacts.vtu"]
+
+
+# ---------------------------------------------------------------------------------------------
+# a run
+
+
+@pytest.mark.parametrize("container", ["box", "cylinder"])
+def test_a_run_pours_and_settles_inside_its_container(tmp_path, container):
+    config = load_config_dict({
+        "seed": 2, "n_particles": 40, "lateral_size": L,
+        "populations": [{"shape": "pinacoid", "size": 1.0, "volume_fraction": 1.0}],
+        "container": {"shape": container, "wall_friction": 0.3},
+        "equilibrium": {"max_time": 1.5},
+    })
+    summary = run_packing(config, tmp_path, progress=False)
+    assert read_json(tmp_path / "summary.json")["container"] == Box.square(L, container).to_dict()
+    packing = read_packing(tmp_path / "final.gsd")
+    assert packing.box == Box.square(L, container) and summary["steps"] == 300
+    assert _outside(packing.state) < 2e-3
+    sides = packing.contacts.body_j[packing.contacts.body_j < -1]
+    assert len(sides) and set(sides.tolist()) <= ({-2, -3, -4, -5} if container == "box" else {-6})
