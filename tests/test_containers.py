@@ -22,6 +22,7 @@ from granpack.equilibrium import wall_force
 from granpack.io.gsd import read_packing, write_packing
 from granpack.io.json import read_json
 from granpack.io.vtk import write_vtk
+from granpack.mesh.surfaces import grain_surfaces
 from granpack.nscd import StepParameters, step, total_energy
 from granpack.packing import Packing
 from granpack.simulation import run_packing
@@ -344,6 +345,15 @@ def test_gsd_and_vtk_carry_the_container(tmp_path, container):
     if container == "box":
         for wall in sides:
             np.testing.assert_allclose(wall_height(wall, ends[warm.body_j == wall, 1]), 0.0, atol=1e-12)
+
+def test_grain_surfaces_in_a_container_are_the_grains_where_they_are():
+    state = _poured("box", n=10)
+    state.position[0, 0] = -1e-4  # pressed slightly into the wall x = 0: not wrapped to x = L
+    surfaces = grain_surfaces(Packing(state, ContactSet.empty(), H, ["pinacoids"], {}), images=True)
+    assert [s.grain for s in surfaces] == list(range(10))
+    assert all(s.shift == (0, 0) for s in surfaces)
+    np.testing.assert_allclose(surfaces[0].mesh.vertices.mean(axis=0)[0], -1e-4, atol=0.2)
+
 
 def test_a_periodic_packing_reads_back_periodic_and_writes_no_container(tmp_path):
     state = state_of([Sphere(1.0)], [0], [[1.0, 1.0, 0.5]], [IDENTITY], "periodic")

@@ -259,7 +259,8 @@ def _region(packing: Packing, options: MeshOptions, table: ShapeTable) -> tuple[
 
 
 def _instances(state: ParticleState, outer: np.ndarray, box) -> Instances:
-    """Grains and their periodic images (bodies of circumscribed radius ``outer[kind]``) that reach into the box."""
+    """Grains and their periodic images (bodies of circumscribed radius ``outer[kind]``) that reach into the box;
+    in a box or a cylinder (:class:`granpack.box.Box`) the grains alone, where they are."""
     from granpack.rotations import quat_to_matrix
 
     x0, y0, z0, x1, y1, z1 = box
@@ -268,9 +269,10 @@ def _instances(state: ParticleState, outer: np.ndarray, box) -> Instances:
     reach = outer[state.kind]
     # wrap centres into [x0, x0 + lx) x [y0, y0 + ly): the images needed are then the +-1 shifts
     pos = state.position.copy()
-    pos[:, 0] = x0 + np.mod(pos[:, 0] - x0, lx)
-    pos[:, 1] = y0 + np.mod(pos[:, 1] - y0, ly)
-    shifts = [(i * lx, j * ly) for i in (-1, 0, 1) for j in (-1, 0, 1)]
+    if state.box.periodic:
+        pos[:, 0] = x0 + np.mod(pos[:, 0] - x0, lx)
+        pos[:, 1] = y0 + np.mod(pos[:, 1] - y0, ly)
+    shifts = [(i * lx, j * ly) for i in (-1, 0, 1) for j in (-1, 0, 1)] if state.box.periodic else [(0.0, 0.0)]
     grains, where = [], []
     lo_box, hi_box = np.array([x0, y0, z0]), np.array([x1, y1, z1])
     for sx, sy in shifts:
@@ -345,6 +347,9 @@ def plan_mesh(packing: Packing, options: MeshOptions) -> MeshPlan:
         itz_scale = np.ones(len(table.shapes))
     shrunk = ShapeTable.from_shapes([s.scaled(f) for s, f in zip(table.shapes, scale)])
     box, full_width = _region(packing, options, shrunk)
+    if options.periodic and not packing.box.periodic:
+        raise InputError(f"--periodic needs a periodic cell: this packing lies in a {packing.box.container} "
+                         "(container.shape); leave --periodic out")
     if options.periodic and not full_width:
         raise InputError(f"--periodic needs the cell's full width: leave --box out, or give X1 - X0 = {packing.box.lx:.6g} "
                          f"and Y1 - Y0 = {packing.box.ly:.6g} (d)")

@@ -63,22 +63,25 @@ def _template(shape):
 
 def grain_surfaces(packing: Packing, *, images: bool = False) -> list[GrainSurface]:
     """Every grain as a closed surface at its wrapped centre, then (``images``) the periodic images
-    of those reaching past ``x = 0``, ``x = lx``, ``y = 0`` or ``y = ly``, in grain order."""
+    of those reaching past ``x = 0``, ``x = lx``, ``y = 0`` or ``y = ly``, in grain order. In a box
+    or a cylinder (:class:`granpack.box.Box`) the centres are not wrapped and there are no images."""
     import trimesh
 
     state = packing.state
     lx, ly = packing.box.lx, packing.box.ly
     rotation = quat_to_matrix(state.quaternion)
     position = state.position.copy()
-    position[:, 0] = np.mod(position[:, 0], lx)
-    position[:, 1] = np.mod(position[:, 1], ly)
+    periodic = packing.box.periodic
+    if periodic:
+        position[:, 0] = np.mod(position[:, 0], lx)
+        position[:, 1] = np.mod(position[:, 1], ly)
     templates = [_template(s) for s in state.shapes.shapes]
     out = []
     for i in range(state.n):
         vertices, triangles = templates[state.kind[i]]
         world = vertices @ rotation[i].T + position[i]
         shifts = [(0, 0)]
-        if images:
+        if images and periodic:
             lo, hi = world.min(axis=0), world.max(axis=0)
             along_x = [0] + ([1] if lo[0] < 0 else []) + ([-1] if hi[0] > lx else [])
             along_y = [0] + ([1] if lo[1] < 0 else []) + ([-1] if hi[1] > ly else [])
