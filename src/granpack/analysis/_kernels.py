@@ -187,7 +187,8 @@ def pair_histogram_kernel(position, is_ref, group, ngroups, lx, ly, lz, r_max, n
         position: ``(n, 3)`` centres **sorted by z** (the loop stops once ``dz > r_max``).
         is_ref: ``(n,)`` bool, reference particles.
         group: ``(n,)`` int64 group (population) of each particle.
-        lx, ly: periods in x, y; lz: period in z, or 0 for a non-periodic direction.
+        lx, ly: periods in x, y, or both 0 in a box or a cylinder (nothing periodic); lz: period
+            in z, or 0 for a non-periodic direction.
         r_max, nbins: uniform bins ``[b r_max / nbins, (b+1) r_max / nbins)``.
 
     Returns:
@@ -206,9 +207,10 @@ def pair_histogram_kernel(position, is_ref, group, ngroups, lx, ly, lz, r_max, n
             if lz > 0.0:
                 dz -= lz * np.round(dz / lz)
             dx = position[j, 0] - position[i, 0]
-            dx -= lx * np.round(dx / lx)
             dy = position[j, 1] - position[i, 1]
-            dy -= ly * np.round(dy / ly)
+            if lx > 0.0:
+                dx -= lx * np.round(dx / lx)
+                dy -= ly * np.round(dy / ly)
             r2 = dx * dx + dy * dy + dz * dz
             if r2 >= r2max:
                 continue

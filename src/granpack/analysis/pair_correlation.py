@@ -129,7 +129,8 @@ class PairCorrelation(Compute):
         idx = idx[np.argsort(z[idx], kind="stable")]
         group = state.population[idx]
         counts = pair_histogram_kernel(
-            state.position[idx], refs[idx], group, npop, box.lx, box.ly, float(self.periodic_z or 0.0), r_max, self.bins
+            state.position[idx], refs[idx], group, npop, box.periods[0], box.periods[1], float(self.periodic_z or 0.0),
+            r_max, self.bins
         ).astype(np.float64)
         volume = box.area * (z_t - z_b)
         rho = len(idx) / volume
