@@ -382,3 +382,23 @@ def test_a_run_pours_and_settles_inside_its_container(tmp_path, container):
     assert _outside(packing.state) < 2e-3
     sides = packing.contacts.body_j[packing.contacts.body_j < -1]
     assert len(sides) and set(sides.tolist()) <= ({-2, -3, -4, -5} if container == "box" else {-6})
+
+
+def test_each_vertex_on_the_cylinder_is_warm_started_from_its_own_manifold():
+    """A cube on the floor pressed by a tilted gravity against the cylinder by a vertical edge (two
+    cylinder manifolds, one per vertex of the edge's ends, each loaded): at rest every point,
+    those of both cylinder manifolds included, takes its previous impulse."""
+    cube = platonic("cube", 1.0)
+    half = float(cube.vertices[:, 0].max())
+    q = quat_from_axis_angle([0.0, 0.0, 1.0], math.pi / 4)  # a vertical edge towards +x
+    x = np.array([AXIS[0] + R_CYL - half * math.sqrt(2.0), AXIS[1], half])
+    state = state_of([cube], [0], [x], [q], "cylinder")
+    params = StepParameters(time_step=H, gravity=(0.3, 0.0, -1.0))
+    warm = None
+    for _ in range(60):
+        warm, info = step(state, params, warm)
+    on_cylinder = warm.body_j == -6
+    assert on_cylinder.sum() == 2
+    assert info.n_warm == warm.n_points
+    load = np.array([warm.impulse[warm.point_start[m]] @ warm.normal[m] for m in np.flatnonzero(on_cylinder)]) / H
+    np.testing.assert_allclose(load.sum(), 0.3 * state.mass[0], rtol=1e-6)
