@@ -277,9 +277,9 @@ EXAMPLE_FILES = [p for p in sorted(EXAMPLES.glob("*.toml")) if "mixtures" not in
 def test_examples_load(path):
     cfg = load_config(path)
     # the study's 3000 grains; the demo's 300; the README's 1000 spheres; the graded aggregate's 5000
-    # (its coarse fractions within 0.3 %) and its coarse fraction's 1200
+    # (its coarse fractions within 0.3 %) and its coarse fraction's 1200; the cylinder's 560
     assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000, "aggregate-8-22.toml": 1200,
-                               "spheres-1000.toml": 1000}.get(path.name, 3000)
+                               "spheres-1000.toml": 1000, "cylinder-spheres.toml": 560}.get(path.name, 3000)
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
