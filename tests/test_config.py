@@ -303,7 +303,7 @@ def test_example_lateral_sizes_and_families():
     assert lateral == {"demo.toml": 3.0, "aggregate-4-22.toml": 2.5, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
                        "pinacoids-flat-elongated.toml": 4.0, "pinacoids-flat.toml": 5.5,
                        "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0, "spheres-1000.toml": 8.0,
-                       "aggregate-8-22.toml": 2.2}
+                       "aggregate-8-22.toml": 2.2, "cylinder-spheres.toml": 8.0}
     aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
                ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
                 "pinacoids-flat-elongated.toml")}
