@@ -114,7 +114,7 @@ def expected_column(populations: list[dict], n: int, lateral: float) -> float:
     from granpack.mixture import Mixture
 
     config = _config(populations, n, lateral)
-    return Mixture.from_config(config).pile_height(lateral, PHI_ESTIMATE) / config.largest_size
+    return Mixture.from_config(config).pile_height(lateral ** 2, PHI_ESTIMATE) / config.largest_size
 
 
 def needed_column() -> float:

@@ -4,6 +4,8 @@ anything is written."""
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from granpack.advice import GRADING_REFUSAL, USEFUL_NARROWING, advise, column_warning, friction_warning, refusal
@@ -90,6 +92,23 @@ def test_the_column_advice_names_a_narrower_cell_only_where_the_cell_can_be_narr
     narrowed, none = advice(fitting)  # the advised cell gives the bulk region
     assert none is None
     assert advice(3.0)[1] is None  # the demo's pile
+
+
+def test_the_column_in_a_cylinder_stands_on_the_cylinders_area():
+    def height(container, n=100):
+        config = load_config_dict({"n_particles": n, "lateral_size": 6.0, "container": {"shape": container},
+                                   "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}]})
+        warning = column_warning(config, Mixture.from_config(config))
+        return config, float(warning.split("stand about ")[1].split(" d high")[0]), warning
+
+    config, cell, _ = height("periodic")
+    assert config.floor_area == 36.0
+    config, box, in_box = height("box")
+    assert box == cell and "6 d x 6 d box" in in_box
+    config, cylinder, in_cylinder = height("cylinder")
+    assert config.floor_area == pytest.approx(9.0 * math.pi, rel=1e-15)
+    assert cylinder == pytest.approx(cell * 4.0 / math.pi, abs=0.06)  # two digits printed
+    assert "6 d cylinder" in in_cylinder and "a cylinder of about" in in_cylinder
 
 
 def test_the_python_api_warns_as_the_cli_does(tmp_path, capsys):

@@ -24,7 +24,7 @@ RUN_CONFIGS = [p for p in ALL_FILES if p not in CAMPAIGNS]
 
 def _expected_column(config) -> float:
     """The column ``granpack check`` expects, in largest grains (solid fraction 0.6)."""
-    return Mixture.from_config(config).pile_height(config.lateral_size, 0.6) / config.largest_size
+    return Mixture.from_config(config).pile_height(config.floor_area, 0.6) / config.largest_size
 
 
 def test_the_examples_are_found():

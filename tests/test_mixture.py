@@ -167,11 +167,11 @@ def test_the_pile_height_is_the_solid_volume_over_the_cell_at_its_solid_fraction
 
     one = load_config_dict({"n_particles": 100, "lateral_size": 3.0,
                             "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}]})
-    assert Mixture.from_config(one).pile_height(3.0, 0.5) == pytest.approx(100 * math.pi / 6 / (0.5 * 9.0))
-    assert Mixture.from_config(one).pile_height(3.0) == pytest.approx(100 * math.pi / 6 / (PHI_ONE_SIZE * 9.0))
+    assert Mixture.from_config(one).pile_height(9.0, 0.5) == pytest.approx(100 * math.pi / 6 / (0.5 * 9.0))
+    assert Mixture.from_config(one).pile_height(9.0) == pytest.approx(100 * math.pi / 6 / (PHI_ONE_SIZE * 9.0))
     two = load_config_dict({"n_particles": 100, "lateral_size": 3.0, "populations": [
         {"shape": "sphere", "size": 1.0, "volume_fraction": 0.5, "name": "a"},
         {"shape": "sphere", "size": 0.5, "volume_fraction": 0.5, "name": "b"}]})
     mixture = Mixture.from_config(two)
     solid = float((mixture.counts * mixture.particle_volumes).sum())
-    assert mixture.pile_height(3.0) == pytest.approx(solid / (PHI_MIXED_SIZES * 9.0))
+    assert mixture.pile_height(9.0) == pytest.approx(solid / (PHI_MIXED_SIZES * 9.0))

@@ -104,7 +104,7 @@ def _bulk_column(config: RunConfig) -> float:
 def _expected_height(config: RunConfig, mixture: Mixture) -> tuple[float, float]:
     """The expected height of the settled pile, d, and the solid fraction it is estimated at."""
     phi = PHI_MIXED_SIZES if mixture.has_mixed_sizes else PHI_ONE_SIZE
-    return mixture.pile_height(config.lateral_size, phi), phi
+    return mixture.pile_height(config.floor_area, phi), phi
 
 
 def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
@@ -116,6 +116,9 @@ def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
     at least ``d`` thick (``d`` the largest grain size).
     """
     options = AnalysisOptions()
+    holder = {"periodic": "cell", "box": "box", "cylinder": "cylinder"}[config.container.shape]
+    where = (f"{config.lateral_size:g} d cylinder" if holder == "cylinder" else
+             f"{config.lateral_size:g} d x {config.lateral_size:g} d {holder}")
     height, phi = _expected_height(config, mixture)
     needed = _bulk_column(config)
     if height >= needed:
@@ -125,13 +128,13 @@ def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
     narrowest = config.narrowest_cell
     fitting = config.lateral_size * math.sqrt(height / needed)  # the same grains, a bulk region
     if fitting > narrowest:
-        remedies.append(f"a cell of about {math.floor(100 * fitting) / 100:g} d")
+        remedies.append(f"a {holder} of about {math.floor(100 * fitting) / 100:g} d")
     elif config.lateral_size > USEFUL_NARROWING * narrowest:
         remedies.append(f"the narrowest cell ({narrowest:.3g} d, lateral_size must exceed it) with more grains")
     else:
         remedies[0] += " (the cell is at its narrowest)"
     return (f"the settled pile will stand about {height:.2g} d high (solid fraction about {phi:g} over the "
-            f"{config.lateral_size:g} d x {config.lateral_size:g} d cell), below the {needed:g} d that a bulk region "
+            f"{where}), below the {needed:g} d that a bulk region "
             f"needs ({options.n_bottom:g} d above the wall, {config.largest_size:g} d of bulk, {options.n_top:g} d below "
             f"the surface): the bulk figures of `granpack analyze` will be nan; use {' or '.join(remedies)}")
 

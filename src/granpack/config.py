@@ -873,6 +873,14 @@ class RunConfig(_Model):
         return _alert_distance(self.time_stepping, self.largest_size)
 
     @property
+    def floor_area(self) -> float:
+        """The area the pile stands on, d^2: ``lateral_size^2`` in the periodic cell and the box,
+        ``pi lateral_size^2 / 4`` in the cylinder."""
+        if self.container.shape == "cylinder":
+            return math.pi * self.lateral_size ** 2 / 4.0
+        return self.lateral_size ** 2
+
+    @property
     def narrowest_cell(self) -> float:
         """The bound ``lateral_size`` must exceed, d: 2 (largest grain size + alert distance)."""
         return _narrowest_cell(self.largest_size, self.resolved_alert_distance)

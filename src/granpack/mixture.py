@@ -231,13 +231,14 @@ class Mixture:
         solid = self.solid_volumes
         return solid / solid.sum()
 
-    def pile_height(self, lateral_size: float, solid_fraction: float | None = None) -> float:
-        """Expected height of the settled pile, d: the grains' volume over the cell's area at
-        ``solid_fraction``; by default :data:`PHI_ONE_SIZE` for grains of one size and
-        :data:`PHI_MIXED_SIZES` for a mix of sizes, whose small grains fill the large ones' voids."""
+    def pile_height(self, floor_area: float, solid_fraction: float | None = None) -> float:
+        """Expected height of the settled pile, d: the grains' volume over the floor's area
+        (``RunConfig.floor_area``, d^2) at ``solid_fraction``; by default :data:`PHI_ONE_SIZE` for
+        grains of one size and :data:`PHI_MIXED_SIZES` for a mix of sizes, whose small grains fill
+        the large ones' voids."""
         if solid_fraction is None:
             solid_fraction = PHI_MIXED_SIZES if self.has_mixed_sizes else PHI_ONE_SIZE
-        return float(self.solid_volumes.sum()) / (solid_fraction * lateral_size ** 2)
+        return float(self.solid_volumes.sum()) / (solid_fraction * floor_area)
 
     @property
     def has_mixed_sizes(self) -> bool:
