@@ -80,6 +80,26 @@ class Box:
         """``(lx, ly, 0)``: the periods as a 3-vector (0 means not periodic; all 0 for a container)."""
         return np.array([self.lx, self.ly, 0.0]) if self.periodic else np.zeros(3)
 
+    @property
+    def depth(self) -> float:
+        """The largest distance from the side walls inside a container, d: the cylinder's radius,
+        half the box's shorter side (``inf`` for a periodic cell, which has no side walls)."""
+        if self.periodic:
+            return math.inf
+        return 0.5 * min(self.lx, self.ly)
+
+    def wall_distance(self, xy: np.ndarray) -> np.ndarray:
+        """``(n,)`` distance from the nearest side wall of the points ``xy`` ``(n, 2)`` (or ``(n, 3)``,
+        z ignored), d: ``lx/2 - |xy - axis|`` in a cylinder, the distance to the nearest of the four
+        planes in a box, negative outside; ``inf`` in a periodic cell."""
+        xy = np.asarray(xy, dtype=np.float64)[..., :2]
+        if self.container == "cylinder":
+            return 0.5 * self.lx - np.hypot(xy[..., 0] - 0.5 * self.lx, xy[..., 1] - 0.5 * self.ly)
+        if self.container == "box":
+            x, y = xy[..., 0], xy[..., 1]
+            return np.minimum(np.minimum(x, self.lx - x), np.minimum(y, self.ly - y))
+        return np.full(xy.shape[:-1], math.inf)
+
     def to_dict(self) -> dict:
         """The container as summary.json and the GSD file record it: ``shape`` and its inside size,
         d (``lateral_size`` of a periodic cell or a box, ``diameter`` of a cylinder, and for a

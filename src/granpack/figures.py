@@ -6,12 +6,13 @@ in d (the largest grain's circumscribed diameter).
 
 For a **run folder** (``analysis.json`` and ``final.gsd``), :func:`run_figures` writes into
 ``<run>/figures/``: ``solid_fraction_profile``, ``pair_correlation``, ``homogeneity``, ``grading``
-(a packing of several sizes) and ``packing`` (a 3D picture, grains coloured by population). Each
+(a packing of several sizes), ``wall_profile`` (a packing in a box or a cylinder) and ``packing`` (a 3D picture, grains coloured by population). Each
 figure's axes are drawn from the run's ``analysis.json`` by the figure function of its quantity's
 module (:func:`~granpack.analysis.solid_fraction.plot_profile`,
 :func:`~granpack.analysis.pair_correlation.plot_g`,
 :func:`~granpack.analysis.homogeneity.plot_proportions`,
-:func:`~granpack.analysis.size_classes.plot_class_profiles`), the same functions a computed
+:func:`~granpack.analysis.size_classes.plot_class_profiles`,
+:func:`~granpack.analysis.wall_profile.plot_wall_profile`), the same functions a computed
 quantity's ``.plot(ax)`` calls; this module lays out the figures and writes the files.
 
 The figures of a campaign folder are :mod:`granpack.campaign.figures`'s.
@@ -35,6 +36,7 @@ from granpack.analysis.homogeneity import plot_proportions, proportions_of
 from granpack.analysis.pair_correlation import plot_g
 from granpack.analysis.size_classes import plot_class_profiles
 from granpack.analysis.solid_fraction import plot_profile
+from granpack.analysis.wall_profile import plot_wall_profile
 from granpack.errors import InputError
 from granpack.io.atomic import atomic_path
 from granpack.io.run_folder import ANALYSIS_FILE, CONFIG_FILE, FINAL_FILE
@@ -242,6 +244,12 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
         plot_proportions(fig.add_subplot(), analysis.get("homogeneity"))
         written += save_figure(fig, out, "homogeneity")
 
+    wall = _wall_figure(analysis)
+    if isinstance(wall, str):
+        written.skipped["wall_profile"] = wall
+    else:
+        written += save_figure(wall, out, "wall_profile")
+
     final = run_dir / FINAL_FILE
     packing = read_packing(final) if final.is_file() else None
     if "size_classes" not in analysis:
@@ -255,6 +263,34 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
     else:
         written.skipped["packing"] = f"no {final.name} in {run_dir}"
     return written
+
+
+def _wall_figure(analysis: dict) -> Figure | str:
+    """The profiles against the distance from the side walls, stacked: the solid fraction, the
+    backbone coordination and, with non-spherical grains, the nematic order, each with its core
+    value dashed; or why there is none."""
+    part = analysis.get("wall_profile")
+    if not isinstance(part, dict):
+        return "a periodic cell has no side walls (no wall_profile in analysis.json)"
+    core = {"solid_fraction": (analysis.get("solid_fraction") or {}).get("bulk"),
+            "N": (analysis.get("coordination") or {}).get("N"), "Q00": (analysis.get("order") or {}).get("Q00")}
+    drawn = [q for q in core if q == "solid_fraction" or any(v is not None for v in part.get(q) or [])]
+    fig = Figure(figsize=(6, 2.6 * len(drawn)))
+    axes = fig.subplots(len(drawn), 1, sharex=True, squeeze=False)[:, 0]
+    if not plot_wall_profile(axes[0], part, "solid_fraction", core["solid_fraction"]):
+        return "wall_profile has no solid-fraction profile (no bulk region)"
+    for ax, quantity in zip(axes[1:], drawn[1:]):
+        plot_wall_profile(ax, part, quantity, core[quantity])
+    for ax in axes[:-1]:
+        ax.set_xlabel("")
+    n_wall = (analysis.get("bulk") or {}).get("n_wall")
+    if isinstance(n_wall, (int, float)):
+        for ax in axes:
+            ax.axvspan(n_wall, ax.get_xlim()[1], color="0.92", zorder=0)
+    z = [v if isinstance(v, (int, float)) else math.nan for v in (part.get("z_bottom"), part.get("z_top"))]
+    axes[0].set_title(f"{part.get('container', 'container')}: slab z = {z[0]:.2f} .. {z[1]:.2f} d, core shaded")
+    fig.tight_layout()
+    return fig
 
 
 def _grading_figure(run_dir: Path, analysis: dict, packing) -> Figure:

@@ -331,11 +331,14 @@ class Coordination(Compute):
             (:attr:`~granpack.packing.Packing.friction`, the run's ``solver.friction``).
         slide_tol: a contact slides when its resultant's :func:`mobilisation` is at least
             ``1 - slide_tol`` (dimensionless, in ``[0, 1)``).
+        n_wall: in a box or a cylinder, count only the grains of the core, centres at least
+            ``n_wall d`` from the side walls (the others are a boundary, never removed as
+            rattlers); 0 the whole section; ignored in a periodic cell.
     """
 
     def __init__(self, z_range: tuple[float, float] | None = None, force_tol: float = 1e-9, remove_rattlers: bool = True,
                  point_tol: float = 1e-3, gap_tol: float = 1e-4, rank_tol: float = 1e-3, friction: float | None = None,
-                 slide_tol: float = 1e-3):
+                 slide_tol: float = 1e-3, n_wall: float = 0.0):
         if friction is not None and not friction >= 0:
             raise ValueError(f"friction must be >= 0, got {friction}")
         if not 0.0 <= slide_tol < 1.0:
@@ -348,13 +351,14 @@ class Coordination(Compute):
         self.rank_tol = float(rank_tol)
         self.friction = None if friction is None else float(friction)
         self.slide_tol = float(slide_tol)
+        self.n_wall = float(n_wall)
 
     def compute(self, packing: Packing) -> "Coordination":
         """Count the contacts of the bulk grains of ``packing``."""
         self._start()
         self._mu = packing.friction if self.friction is None else self.friction
         frictional = self._mu > 0
-        analysed = in_region(packing, analysed_region(packing, self.z_range))
+        analysed = in_region(packing, analysed_region(packing, self.z_range), self.n_wall)
         active = force_bearing(packing, self.force_tol)
         types = type_rules(packing, self.point_tol, self.gap_tol, self.rank_tol)
         self._n = int(analysed.sum())

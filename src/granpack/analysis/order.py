@@ -104,15 +104,18 @@ class Order(Compute):
         population: restrict to one population index (all if ``None``).
         baseline_samples: Monte Carlo samples of the isotropic baseline.
         grains: ``(N,)`` bool, restrict to these grains (a shape class; all if ``None``).
+        n_wall: with ``bulk``, in a box or a cylinder, only the grains of the core, centres at
+            least ``n_wall d`` from the side walls; 0 the whole section; ignored in a periodic cell.
     """
 
     def __init__(self, z_range: tuple[float, float] | None = None, bulk: bool = True, population: int | None = None,
-                 baseline_samples: int = 100, grains: np.ndarray | None = None):
+                 baseline_samples: int = 100, grains: np.ndarray | None = None, n_wall: float = 0.0):
         self.z_range = z_range
         self.bulk = bulk
         self.population = population
         self.baseline_samples = int(baseline_samples)
         self.grains = grains
+        self.n_wall = float(n_wall)
 
     def compute(self, packing: Packing) -> "Order":
         """Compute the order parameters of ``packing``."""
@@ -127,7 +130,7 @@ class Order(Compute):
         if self.bulk:
             region = analysed_region(packing, self.z_range)
             valid = region[2]
-            mask &= in_region(packing, region)
+            mask &= in_region(packing, region, self.n_wall)
         self._n = int(mask.sum())
         self._q00 = self._q22 = math.nan
         self._director = np.full(3, math.nan)

@@ -22,6 +22,12 @@ Option ``interior_only``: only references at least ``r_max`` away from both slab
 shells are whole; Z(r) is then the exact mean neighbour count). Option ``periodic_z``: treat the
 configuration as periodic in z with that period (configurations built in fully periodic cells,
 e.g. to cross-check against freud); all grains are then references.
+
+Option ``n_wall`` (a box or a cylinder, docs/method/analysis.md#wall-effect): the references are
+the grains of the **core**, centres at least ``n_wall d`` from the side walls; the neighbours are
+every grain of the slab, whatever its distance from the walls; ``rho`` is the number density of
+the core's centres, and ``r_max`` is clipped at ``n_wall d``, so that every reference's shell lies
+inside the container (only the slab planes truncate it, as above).
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import numpy as np
 
 from granpack.analysis._base import Compute, any_finite, as_array, result
 from granpack.analysis._kernels import pair_histogram_kernel
+from granpack.analysis._wall_volumes import inset_area
 from granpack.analysis.solid_fraction import analysed_region, in_region
 from granpack.packing import Packing
 
@@ -60,6 +67,8 @@ class PairCorrelation(Compute):
         interior_only: take as references only grains whose whole shell of radius ``r_max`` is in the slab.
         partials: also compute ``g_ab`` between populations.
         periodic_z: period along z (fully periodic configuration); ``None`` for the slab.
+        n_wall: in a box or a cylinder, references in the core only, ``n_wall d`` from the side
+            walls (module docstring); 0 every grain of the slab; ignored in a periodic cell.
 
     Example::
 
@@ -75,6 +84,7 @@ class PairCorrelation(Compute):
         interior_only: bool = False,
         partials: bool = False,
         periodic_z: float | None = None,
+        n_wall: float = 0.0,
     ):
         if bins < 1 or not r_max > 0:
             raise ValueError(f"need bins >= 1 and r_max > 0, got bins={bins}, r_max={r_max}")
@@ -84,6 +94,7 @@ class PairCorrelation(Compute):
         self.interior_only = bool(interior_only)
         self.partials = bool(partials)
         self.periodic_z = periodic_z
+        self.n_wall = float(n_wall)
 
     def compute(self, packing: Packing) -> "PairCorrelation":
         """Histogram the pair distances of ``packing`` and normalise."""
@@ -92,8 +103,12 @@ class PairCorrelation(Compute):
         box = packing.box
         r_max = self.r_max
         limit = 0.5 * min(box.lx, box.ly, self.periodic_z or math.inf)
+        core = not box.periodic and self.n_wall > 0 and self.periodic_z is None
+        if core:
+            limit = self.n_wall * (packing.max_size if state.n else 1.0)
         if r_max > limit:
-            self._warn(f"r_max = {r_max:g} d exceeds half the period ({limit:g} d); clipped")
+            what = "the core's distance from the walls" if core else "half the period"
+            self._warn(f"r_max = {r_max:g} d exceeds {what} ({limit:g} d); clipped")
             r_max = limit
         width = r_max / self.bins
         self._edges = np.arange(self.bins + 1) * width
@@ -112,7 +127,8 @@ class PairCorrelation(Compute):
         else:
             z_b, z_t, valid = region = analysed_region(packing, self.z_range)
             members = in_region(packing, region)
-        refs = members.copy()
+        refs = in_region(packing, region, self.n_wall) if core else members.copy()
+        n_core = int(refs.sum())
         if self.interior_only and self.periodic_z is None:
             refs &= (z >= z_b + r_max) & (z <= z_t - r_max)
         self._n_ref = int(refs.sum())
@@ -134,6 +150,8 @@ class PairCorrelation(Compute):
         ).astype(np.float64)
         volume = box.area * (z_t - z_b)
         rho = len(idx) / volume
+        if core:  # the density of the references' region
+            rho = n_core / (float(inset_area(box, limit)) * (z_t - z_b))
         rho_b = np.bincount(group, minlength=npop) / volume
         ref_group = state.population[refs]
         if self.periodic_z is not None:

@@ -8,7 +8,8 @@ frictional packing's rule, constraint count and sliding contacts under ``frictio
 ``pair_correlation`` {r, g, ...}, ``equilibrium`` {max_net_force, max_net_torque, kinetic_energy,
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
 {z, proportions, ...}, ``size_classes`` {sieves, passing, profile, coordination, ...; a packing of
-several sizes only}, ``grain_shapes`` {elongation, flatness, sphericity, convexity: one value per
+several sizes only}, ``wall_profile`` {distance, solid_fraction, section_solid_fraction, N, Q00, ...;
+a box's or a cylinder's packing only, whose bulk figures are those of its core}, ``grain_shapes`` {elongation, flatness, sphericity, convexity: one value per
 grain}, ``n_particles``, ``populations`` (each with its coordination, order, shape descriptors and
 shape classes), ``seed``, ``version``; extras:
 ``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
@@ -35,6 +36,7 @@ from granpack.analysis.order import Order
 from granpack.analysis.pair_correlation import PairCorrelation
 from granpack.analysis.size_classes import SizeClasses
 from granpack.analysis.solid_fraction import SolidFraction
+from granpack.analysis.wall_profile import WallProfile
 from granpack.equilibrium import EquilibriumCriteria, criteria_of
 from granpack.errors import InputError
 from granpack.io.gsd import read_packing, shape_spec
@@ -73,6 +75,12 @@ class AnalysisOptions:
         sieves: sieve sizes (d) of the size classes of a packing of several sizes; default
             :data:`~granpack.analysis.size_classes.DEFAULT_CLASSES` classes from the smallest to
             the largest grain.
+        n_wall: in a box or a cylinder, the bulk figures (solid fraction, coordination, order,
+            g(r)) are those of the core, ``n_wall d`` from the side walls (0: the whole section;
+            ignored in a periodic cell); g(r) then reaches ``min(rdf_r_max, n_wall)``.
+        wall_bin_width: shells of the solid-fraction profile against the distance from the side
+            walls (``wall_profile``, a container's packing only).
+        wall_grain_bin_width: shells of the profiles over grain centres (coordination, order).
     """
 
     n_bottom: float = 2.0
@@ -90,6 +98,9 @@ class AnalysisOptions:
     friction: float | None = None
     slide_tol: float = 1e-3
     criteria: EquilibriumCriteria | None = None
+    n_wall: float = 2.0
+    wall_bin_width: float = 0.05
+    wall_grain_bin_width: float = 0.25
 
 
 #: the order figures of a population, and of a shape class (without the isotropic baseline)
@@ -104,7 +115,7 @@ def _order_of(packing: Packing, keys: tuple[str, ...], **selection) -> dict:
     return {k: figures[k] for k in keys}
 
 
-def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, z_range) -> list[dict]:
+def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, z_range, n_wall: float) -> list[dict]:
     """One row per population: its grains and shapes, and over its bulk grains the coordination
     (:meth:`Coordination.figures_of`), order and shape descriptors, also per shape class."""
     state = packing.state
@@ -126,13 +137,13 @@ def _populations(packing: Packing, co: Coordination, grain_shapes: GrainShapes, 
         if len(kinds) > 1 and len(sizes):
             row["sizes"] = {"min": float(sizes.min()), "max": float(sizes.max()), "mean": float(sizes.mean())}
         row["coordination"] = co.figures_of(members)
-        row["order"] = _order_of(packing, _POPULATION_ORDER, z_range=z_range, population=a)
+        row["order"] = _order_of(packing, _POPULATION_ORDER, z_range=z_range, population=a, n_wall=n_wall)
         row["shape_descriptors"] = grain_shapes.summary(members)
         row["shape_classes"] = [
             {"shape": c["shape"], "n": int(c["grains"].sum()),
              **{k: c[k] for k in ("elongation", "flatness", "sphericity", "convexity")},
              "coordination": co.figures_of(c["grains"]),
-             "order": _order_of(packing, _CLASS_ORDER, z_range=z_range, grains=c["grains"])}
+             "order": _order_of(packing, _CLASS_ORDER, z_range=z_range, grains=c["grains"], n_wall=n_wall)}
             for c in grain_shapes.classes[a]["classes"]]
         out.append(row)
     return out
@@ -148,22 +159,34 @@ def _compute(packing: Packing, opt: AnalysisOptions) -> tuple[SolidFraction, tup
     ``analysis.json``; their warnings silenced (:func:`analyze_packing` says them once, with their
     key)."""
     box = packing.box
+    core = 0.0 if box.periodic else opt.n_wall  # a container's bulk figures are its core's
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        sf = SolidFraction(opt.slice_thickness, opt.n_bottom, opt.n_top).compute(packing)
+        sf = SolidFraction(opt.slice_thickness, opt.n_bottom, opt.n_top, n_wall=core).compute(packing)
         z_range = (sf.z_bottom, sf.z_top) if sf.has_bulk else (0.0, 0.0)
         r_max = min(opt.rdf_r_max, 0.5 * min(box.lx, box.ly))
+        if core > 0:
+            r_max = min(opt.rdf_r_max, core * (packing.max_size if packing.n_particles else 1.0))
         bins = max(int(round(r_max / opt.rdf_bin_width)), 1)
+
+        def coordination(n_wall: float) -> Coordination:
+            return Coordination(z_range, opt.force_tol, point_tol=opt.point_tol, gap_tol=opt.gap_tol,
+                                rank_tol=opt.rank_tol, friction=opt.friction, slide_tol=opt.slide_tol,
+                                n_wall=n_wall).compute(packing)
+
         computed = {
-            "coordination": Coordination(z_range, opt.force_tol, point_tol=opt.point_tol, gap_tol=opt.gap_tol,
-                                         rank_tol=opt.rank_tol, friction=opt.friction,
-                                         slide_tol=opt.slide_tol).compute(packing),
-            "order": Order(z_range).compute(packing),
-            "pair_correlation": PairCorrelation(bins, r_max, z_range, partials=opt.rdf_partials).compute(packing),
+            "coordination": coordination(core),
+            "order": Order(z_range, n_wall=core).compute(packing),
+            "pair_correlation": PairCorrelation(bins, r_max, z_range, partials=opt.rdf_partials,
+                                                n_wall=core).compute(packing),
             "equilibrium": Equilibrium(opt.criteria).compute(packing),
             "interpenetration": Interpenetration(opt.n_bottom).compute(packing),
             "homogeneity": Homogeneity(opt.layer_thickness, z_range).compute(packing),
         }
+        if not box.periodic:  # the profiles read the backbone of the whole slab
+            slab = computed["coordination"] if core == 0 else coordination(0.0)
+            computed["wall_profile"] = WallProfile(z_range, opt.wall_bin_width, opt.wall_grain_bin_width,
+                                                   coordination=slab).compute(packing)
     return sf, z_range, computed
 
 
@@ -189,7 +212,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         messages.append(f"{sf.no_bulk_reason}: every bulk figure (solid fraction, "
                         f"{', '.join(_BULK_KEYS).replace('_', ' ')}) is nan")
     for key, obj in computed.items():
-        if sf.has_bulk or key not in _BULK_KEYS:
+        if sf.has_bulk or key not in _BULK_KEYS + ("wall_profile",):
             messages += [f"{key}: {m}" for m in obj.warnings]
     for m in messages:
         warnings.warn(m, AnalysisWarning, stacklevel=2)
@@ -198,7 +221,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
     grain_shapes = GrainShapes().compute(packing)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a population's or class's nan figures: the whole packing's warnings say why
-        populations = _populations(packing, co, grain_shapes, z_range)
+        populations = _populations(packing, co, grain_shapes, z_range, 0.0 if packing.box.periodic else opt.n_wall)
     sizes = 2.0 * packing.state.radius
     several_sizes = packing.n_particles > 0 and sizes.max() > sizes.min() * (1 + 1e-9)
     if several_sizes:
@@ -221,6 +244,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         "equilibrium": computed["equilibrium"].to_dict(),
         "interpenetration": computed["interpenetration"].to_dict(),
         "homogeneity": computed["homogeneity"].to_dict(),
+        **({"wall_profile": computed["wall_profile"].to_dict()} if "wall_profile" in computed else {}),
         **({"size_classes": classes.to_dict()} if several_sizes else {}),
         "warnings": messages,
     }
@@ -284,10 +308,12 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
     eq, ip = result["equilibrium"], result["interpenetration"]
     frictional = co.get("frictional")
     rule = f"frictional rule, μ = {frictional['mu']:g}" if frictional else "frictionless rule"
+    wall = result.get("wall_profile")
+    core = f"core, {result['bulk'].get('n_wall', 0):g} d from the walls" if wall else "bulk"
     rows = [
         ("grains", str(result["n_particles"])),
         ("bulk region z/d", _bulk_region(result["bulk"], fmt)),
-        ("solid fraction (bulk)", f"{fmt(sf['bulk'])} ± {fmt(sf['std'])}"),
+        (f"solid fraction ({core})", f"{fmt(sf['bulk'])} ± {fmt(sf['std'])}"),
         (f"N / Nc (backbone, {rule})", f"{fmt(co['N'], '.3f')} / {fmt(co['Nc'], '.3f')}"),
         ("Ns / Nd / Nt", f"{fmt(co['Ns'], '.3f')} / {fmt(co['Nd'], '.3f')} / {fmt(co['Nt'], '.3f')}"),
         (f"rattler fraction ({rule})", fmt(co["rattler_fraction"], ".3f")),
@@ -304,6 +330,8 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
         other = co.get(key)
         if other is not None:
             rows.append((f"Ns / Nd / Nt / Nc ({label})", " / ".join(fmt(other[k], ".3f") for k in ("Ns", "Nd", "Nt", "Nc"))))
+    if wall:
+        rows.append((f"solid fraction (whole {wall['container']} section)", fmt(wall["section_solid_fraction"])))
     rows += [
         ("Q00 / Q22", f"{fmt(order['Q00'])} / {fmt(order['Q22'])} (axis {order['director_axis'] or '-'})"),
         (

@@ -26,6 +26,7 @@ import numpy as np
 
 from granpack.analysis._base import Compute, any_finite, as_array, result
 from granpack.analysis._kernels import slice_volumes_kernel
+from granpack.analysis._wall_volumes import inset_area, inset_volumes
 from granpack.packing import Packing
 from granpack.rotations import quat_to_matrix
 
@@ -104,6 +105,10 @@ class SolidFraction(Compute):
         n_bottom: the bulk starts ``n_bottom d`` above the wall.
         n_top: the bulk ends ``n_top d`` below the free surface.
         z_range: explicit bulk ``(z_bottom, z_top)`` in d (overrides ``n_bottom``, ``n_top``).
+        n_wall: in a box or a cylinder, the bulk figures (:attr:`bulk`, :attr:`layers`) are those
+            of the **core**, the volume at least ``n_wall d`` from the side walls
+            (docs/method/analysis.md#wall-effect); 0 the whole section. A periodic cell has no
+            side walls: ignored there. The profile is always over the whole section.
 
     Example::
 
@@ -111,13 +116,17 @@ class SolidFraction(Compute):
         sf.bulk, sf.std, sf.z_surface
     """
 
-    def __init__(self, slice_thickness: float = 0.1, n_bottom: float = 2.0, n_top: float = 2.0, z_range: tuple[float, float] | None = None):
+    def __init__(self, slice_thickness: float = 0.1, n_bottom: float = 2.0, n_top: float = 2.0,
+                 z_range: tuple[float, float] | None = None, n_wall: float = 0.0):
         if not slice_thickness > 0:
             raise ValueError(f"slice_thickness must be > 0, got {slice_thickness}")
         self.slice_thickness = float(slice_thickness)
         self.n_bottom = float(n_bottom)
         self.n_top = float(n_top)
         self.z_range = None if z_range is None else (float(z_range[0]), float(z_range[1]))
+        if not n_wall >= 0:
+            raise ValueError(f"n_wall must be >= 0, got {n_wall}")
+        self.n_wall = float(n_wall)
 
     def compute(self, packing: Packing) -> "SolidFraction":
         """Compute the profile, the surface and the bulk figures of ``packing``."""
@@ -130,6 +139,7 @@ class SolidFraction(Compute):
         nslices = max(int(math.ceil(top / dz)), 0)
         volume = slice_volumes(packing, 0.0, dz, nslices)[0]
         self._d = d
+        self._container = not packing.box.periodic
         self._z = (np.arange(nslices) + 0.5) * dz
         self._phi = volume / (area * dz)
         self._plateau, self._z_surface = _surface(self._z, self._phi, volume, dz, d, self.n_bottom)
@@ -147,14 +157,30 @@ class SolidFraction(Compute):
             self._warn(self._no_bulk_reason() + ": the bulk solid fraction is nan")
             return self._done()
         height = z_top - z_bot
-        self._bulk = float(slice_volumes(packing, z_bot, height, 1).sum() / (area * height))
         nlayers = int(math.floor(height / d + 1e-9))
-        if nlayers >= 2:
-            self._layers = slice_volumes(packing, z_bot, d, nlayers)[0] / (area * d)
-            self._std = float(np.std(self._layers, ddof=1))
+        if self._container and self.n_wall > 0:
+            self._core_figures(packing, z_bot, z_top, nlayers)
         else:
+            self._bulk = float(slice_volumes(packing, z_bot, height, 1).sum() / (area * height))
+            if nlayers >= 2:
+                self._layers = slice_volumes(packing, z_bot, d, nlayers)[0] / (area * d)
+        if len(self._layers) >= 2:
+            self._std = float(np.std(self._layers, ddof=1))
+        elif nlayers < 2:
             self._warn("bulk region holds fewer than two grain-size layers: solid-fraction std is nan")
         return self._done()
+
+    def _core_figures(self, packing: Packing, z_bot: float, z_top: float, nlayers: int) -> None:
+        """The bulk value and the layers of a container's core (:func:`inset_volumes`)."""
+        margin = self.n_wall * self._d
+        core = float(inset_area(packing.box, margin))
+        if not core > 0:
+            self._warn(f"the core, {self.n_wall:g} d from the side walls, is empty: the bulk solid fraction is nan")
+            return
+        self._bulk = float(inset_volumes(packing, (z_bot, z_top), [margin])[0] / (core * (z_top - z_bot)))
+        if nlayers >= 2:
+            self._layers = np.array([inset_volumes(packing, (z_bot + k * self._d, z_bot + (k + 1) * self._d), [margin])[0]
+                                     for k in range(nlayers)]) / (core * self._d)
 
     @result
     def no_bulk_reason(self) -> str:
@@ -239,8 +265,10 @@ class SolidFraction(Compute):
 
     def region_to_dict(self) -> dict:
         """The ``bulk`` part of ``analysis.json``, the region every bulk figure reads: ``z_bottom``,
-        ``z_top``, ``z_surface`` (d), ``valid`` (:attr:`has_bulk`), ``n_bottom``, ``n_top``."""
-        return {
+        ``z_top``, ``z_surface`` (d), ``valid`` (:attr:`has_bulk`), ``n_bottom``, ``n_top``, and in
+        a box or a cylinder ``n_wall`` (the core's distance from the side walls, in d; a periodic
+        cell's part has no such key)."""
+        out = {
             "z_bottom": self.z_bottom,
             "z_top": self.z_top,
             "z_surface": self.z_surface,
@@ -248,6 +276,9 @@ class SolidFraction(Compute):
             "n_bottom": self.n_bottom,
             "n_top": self.n_top,
         }
+        if self._container:
+            out["n_wall"] = self.n_wall
+        return out
 
     def plot(self, ax):
         """The profile figure (:func:`plot_profile`) on ``ax``; returns ``ax``."""
@@ -296,12 +327,16 @@ def analysed_region(packing: Packing, z_range: tuple[float, float] | None = None
     return float(z_range[0]), float(z_range[1]), z_range[1] > z_range[0]
 
 
-def in_region(packing: Packing, region: tuple[float, float, bool]) -> np.ndarray:
+def in_region(packing: Packing, region: tuple[float, float, bool], n_wall: float = 0.0) -> np.ndarray:
     """``(N,)`` True for the grains whose centres lie in ``region``, an :func:`analysed_region`
-    (none if it is not valid)."""
+    (none if it is not valid), and in a container's **core**: at least ``n_wall d`` from its side
+    walls (:meth:`~granpack.box.Box.wall_distance`; a periodic cell has none, every grain is in)."""
     z_bot, z_top, valid = region
     z = packing.state.position[:, 2]
-    return (z >= z_bot) & (z <= z_top) if valid else np.zeros(packing.state.n, bool)
+    inside = (z >= z_bot) & (z <= z_top) if valid else np.zeros(packing.state.n, bool)
+    if n_wall > 0 and not packing.box.periodic and packing.state.n:
+        inside &= packing.box.wall_distance(packing.state.position) >= n_wall * packing.max_size
+    return inside
 
 
 def bulk_range(packing: Packing, n_bottom: float = 2.0, n_top: float = 2.0) -> tuple[float, float, bool]:
