@@ -348,3 +348,25 @@ def test_a_computed_quantity_draws_from_its_own_part_what_the_run_figure_draws_f
         assert mine.get_xlabel() == theirs.get_xlabel() and mine.get_ylabel() == theirs.get_ylabel(), key
         legends = [[t.get_text() for t in ax.get_legend().get_texts()] for ax in (mine, theirs)]
         assert legends[0] == legends[1], key
+
+
+@pytest.mark.filterwarnings("ignore::granpack.analysis.AnalysisWarning")
+def test_a_container_run_draws_its_wall_profile_and_a_periodic_one_says_why_not(tmp_path, rng):
+    from granpack.analysis import analyze_run
+    from granpack.figures import run_figures
+    from granpack.io.gsd import write_packing
+
+    grid = np.array([(x, y, z) for x in range(6) for y in range(6) for z in range(8)], dtype=float) + 0.5
+    grid = grid[np.hypot(grid[:, 0] - 3.0, grid[:, 1] - 3.0) <= 2.5]
+    state = ParticleState(box=Box.square(6.0, "cylinder"), shapes=ShapeTable.from_shapes([Sphere(1.0)]),
+                          kind=np.zeros(len(grid), np.int64), population=np.zeros(len(grid), np.int64), position=grid,
+                          quaternion=random_quaternions(len(grid), rng))
+    write_packing(tmp_path / "final.gsd", Packing(state, ContactSet.empty(), 5e-3, ["spheres"], {"seed": 3}))
+    analyze_run(tmp_path)
+    written = run_figures(tmp_path)
+    assert "wall_profile" in {p.stem for p in written}
+    _check_images([p for p in written if p.stem == "wall_profile"])
+    periodic = tmp_path / "periodic"
+    periodic.mkdir()
+    (periodic / "analysis.json").write_text(json.dumps(_analysis(rng, 0.3, 3, 0.2)))
+    assert "periodic cell has no side walls" in run_figures(periodic).skipped["wall_profile"]

@@ -285,8 +285,10 @@ def _wall_figure(analysis: dict) -> Figure | str:
         ax.set_xlabel("")
     n_wall = (analysis.get("bulk") or {}).get("n_wall")
     if isinstance(n_wall, (int, float)):
+        lo, hi = axes[0].get_xlim()
         for ax in axes:
-            ax.axvspan(n_wall, ax.get_xlim()[1], color="0.92", zorder=0)
+            ax.axvspan(n_wall, hi, color="0.92", zorder=0)
+        axes[0].set_xlim(lo, hi)  # shared by every panel
     z = [v if isinstance(v, (int, float)) else math.nan for v in (part.get("z_bottom"), part.get("z_top"))]
     axes[0].set_title(f"{part.get('container', 'container')}: slab z = {z[0]:.2f} .. {z[1]:.2f} d, core shaded")
     fig.tight_layout()
