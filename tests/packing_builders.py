@@ -305,3 +305,31 @@ def cube_on_cube(axis=(1.0, 0.0, 0.0), tilt: float = 0.0, gap: float = 0.0, aler
     normal = contacts.normal[contacts.point_manifold]
     contacts.impulse = H * normal * (loaded / loaded.sum())[:, None]
     return Packing(state, contacts, H, ["cubes"], {})
+
+
+def cylinder_column(wall_loads, pushes, lift: float = 0.0, container: str = "cylinder", metadata=None) -> Packing:
+    """Layers of two spheres of size 1 side by side in a cylinder of diameter 2 (or a 2 x 1 box:
+    ``container = "box"``), at rest: layer k (from the floor) centred at ``z = k + 1/2 + lift``, each
+    sphere pressed against its wall by the horizontal force ``pushes[k]`` (the pair between the two
+    spheres pushes them apart as much) and held up by the wall's vertical force ``wall_loads[k]``;
+    each sphere stands on the one below (on the floor, layer 0) with the weight above it less the
+    walls' share. Every grain's net force is zero."""
+    n = len(wall_loads)
+    pos = np.array([[x, 1.0 if container == "cylinder" else 0.5, k + 0.5 + lift] for k in range(n) for x in (0.5, 1.5)])
+    box = Box(2.0, 2.0, "cylinder") if container == "cylinder" else Box(2.0, 1.0, "box")
+    state = ParticleState(box=box, shapes=ShapeTable.from_shapes([Sphere(1.0)]), kind=np.zeros(2 * n, np.int64),
+                          population=np.zeros(2 * n, np.int64), position=pos, quaternion=identity_quaternions(2 * n))
+    weight = state.mass[0]
+    load = np.cumsum((weight - np.asarray(wall_loads, float))[::-1])[::-1]  # carried by each layer's spheres
+    walls = {"cylinder": (-6, -6), "box": (-2, -3)}[container]
+    manifolds = []
+    for k in range(n):
+        left, right = 2 * k, 2 * k + 1
+        manifolds.append(dict(i=right, j=left, normal=(1, 0, 0), points=[pos[left] + (0.5, 0, 0)], forces=[(pushes[k], 0, 0)]))
+        for grain, side, wall in ((left, 1.0, walls[0]), (right, -1.0, walls[1])):
+            manifolds.append(dict(i=grain, j=wall, normal=(side, 0, 0), points=[pos[grain] - (0.5 * side, 0, 0)],
+                                  forces=[(side * pushes[k], 0, wall_loads[k])]))
+            below = (grain - 2, (0, 0, 1)) if k else (-1, (0, 0, 1))
+            manifolds.append(dict(i=grain, j=below[0], normal=below[1], points=[pos[grain] - (0, 0, 0.5)],
+                                  forces=[(0, 0, load[k])]))
+    return Packing(state, contact_set(manifolds), H, ["spheres"], dict(metadata or {"seed": 1}))

@@ -354,7 +354,9 @@ def test_a_computed_quantity_draws_from_its_own_part_what_the_run_figure_draws_f
 def test_a_container_run_draws_its_wall_profile_and_a_periodic_one_says_why_not(tmp_path, rng):
     from granpack.analysis import analyze_run
     from granpack.figures import run_figures
-    from granpack.io.gsd import write_packing
+    from matplotlib.figure import Figure
+
+    from granpack.io.gsd import read_packing, write_packing
 
     grid = np.array([(x, y, z) for x in range(6) for y in range(6) for z in range(8)], dtype=float) + 0.5
     grid = grid[np.hypot(grid[:, 0] - 3.0, grid[:, 1] - 3.0) <= 2.5]
@@ -364,9 +366,22 @@ def test_a_container_run_draws_its_wall_profile_and_a_periodic_one_says_why_not(
     write_packing(tmp_path / "final.gsd", Packing(state, ContactSet.empty(), 5e-3, ["spheres"], {"seed": 3}))
     analyze_run(tmp_path)
     written = run_figures(tmp_path)
-    assert "wall_profile" in {p.stem for p in written}
-    _check_images([p for p in written if p.stem == "wall_profile"])
+    assert {"wall_profile", "vertical_stress"} <= {p.stem for p in written}
+    _check_images([p for p in written if p.stem in ("wall_profile", "vertical_stress")])
+    # the vertical stress drawn from the file is the computed quantity's
+    from granpack.analysis.wall_forces import WallForces, plot_vertical_stress
+    from granpack.figures import read_analysis
+
+    data = read_analysis(tmp_path)
+    mine, theirs = Figure().add_subplot(), Figure().add_subplot()
+    WallForces(z_surface=data["walls"]["z_surface"]).compute(read_packing(tmp_path / "final.gsd")).plot(mine)
+    plot_vertical_stress(theirs, data["walls"])
+    assert len(_lines(mine)) >= 2
+    for (label, xy), (label_file, xy_file) in zip(_lines(mine), _lines(theirs), strict=True):
+        assert label == label_file and np.allclose(xy, xy_file, equal_nan=True), label
     periodic = tmp_path / "periodic"
     periodic.mkdir()
     (periodic / "analysis.json").write_text(json.dumps(_analysis(rng, 0.3, 3, 0.2)))
-    assert "periodic cell has no side walls" in run_figures(periodic).skipped["wall_profile"]
+    skipped = run_figures(periodic).skipped
+    assert "periodic cell has no side walls" in skipped["wall_profile"]
+    assert "periodic cell has no side walls" in skipped["vertical_stress"]

@@ -6,13 +6,15 @@ in d (the largest grain's circumscribed diameter).
 
 For a **run folder** (``analysis.json`` and ``final.gsd``), :func:`run_figures` writes into
 ``<run>/figures/``: ``solid_fraction_profile``, ``pair_correlation``, ``homogeneity``, ``grading``
-(a packing of several sizes), ``wall_profile`` (a packing in a box or a cylinder) and ``packing`` (a 3D picture, grains coloured by population). Each
+(a packing of several sizes), ``wall_profile`` and ``vertical_stress`` (a packing in a box or a
+cylinder) and ``packing`` (a 3D picture, grains coloured by population). Each
 figure's axes are drawn from the run's ``analysis.json`` by the figure function of its quantity's
 module (:func:`~granpack.analysis.solid_fraction.plot_profile`,
 :func:`~granpack.analysis.pair_correlation.plot_g`,
 :func:`~granpack.analysis.homogeneity.plot_proportions`,
 :func:`~granpack.analysis.size_classes.plot_class_profiles`,
-:func:`~granpack.analysis.wall_profile.plot_wall_profile`), the same functions a computed
+:func:`~granpack.analysis.wall_profile.plot_wall_profile`,
+:func:`~granpack.analysis.wall_forces.plot_vertical_stress`), the same functions a computed
 quantity's ``.plot(ax)`` calls; this module lays out the figures and writes the files.
 
 The figures of a campaign folder are :mod:`granpack.campaign.figures`'s.
@@ -36,6 +38,7 @@ from granpack.analysis.homogeneity import plot_proportions, proportions_of
 from granpack.analysis.pair_correlation import plot_g
 from granpack.analysis.size_classes import plot_class_profiles
 from granpack.analysis.solid_fraction import plot_profile
+from granpack.analysis.wall_forces import plot_vertical_stress
 from granpack.analysis.wall_profile import plot_wall_profile
 from granpack.errors import InputError
 from granpack.io.atomic import atomic_path
@@ -250,6 +253,12 @@ def run_figures(run_dir: str | Path) -> FigureFiles:
     else:
         written += save_figure(wall, out, "wall_profile")
 
+    stress = _stress_figure(analysis)
+    if isinstance(stress, str):
+        written.skipped["vertical_stress"] = stress
+    else:
+        written += save_figure(stress, out, "vertical_stress")
+
     final = run_dir / FINAL_FILE
     packing = read_packing(final) if final.is_file() else None
     if "size_classes" not in analysis:
@@ -291,6 +300,23 @@ def _wall_figure(analysis: dict) -> Figure | str:
         axes[0].set_xlim(lo, hi)  # shared by every panel
     z = [v if isinstance(v, (int, float)) else math.nan for v in (part.get("z_bottom"), part.get("z_top"))]
     axes[0].set_title(f"{part.get('container', 'container')}: slab z = {z[0]:.2f} .. {z[1]:.2f} d, core shaded")
+    fig.tight_layout()
+    return fig
+
+
+def _stress_figure(analysis: dict) -> Figure | str:
+    """The vertical stress against the depth with the fit of Janssen's law, titled with the shares
+    of the weight the floor and the side walls carry; or why there is none."""
+    part = analysis.get("walls")
+    if not isinstance(part, dict):
+        return "a periodic cell has no side walls (no walls in analysis.json)"
+    fig = Figure(figsize=(5.5, 6))
+    ax = fig.add_subplot()
+    if not plot_vertical_stress(ax, part):
+        return "walls has no vertical-stress profile (no free surface)"
+    shares = [part.get(k) if isinstance(part.get(k), (int, float)) else math.nan for k in ("floor_vertical", "side_vertical")]
+    ax.set_title(f"{part.get('container', 'container')}, μ_w = {part.get('wall_friction', math.nan):g}: "
+                 f"floor {shares[0]:.3f} W, side walls {shares[1]:.3f} W", fontsize="medium")
     fig.tight_layout()
     return fig
 

@@ -94,6 +94,26 @@ class Packing:
         return float(mu)
 
     @property
+    def wall_friction(self) -> float:
+        """Coulomb friction coefficient of the grains against the floor and a container's walls
+        (dimensionless, >= 0): the run's ``container.wall_friction``, or :attr:`friction` where the
+        config leaves it unset (as the run does).
+
+        Raises:
+            InputError: ``metadata["config"]`` is not TOML, or a friction not a number >= 0.
+        """
+        mu = self.friction
+        text = self.metadata.get("config")
+        if not text:
+            return mu
+        value = tomllib.loads(text).get("container", {}).get("wall_friction")
+        if value is None:
+            return mu
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+            raise InputError(f"the packing's config (metadata) has container.wall_friction = {value!r}, not a number >= 0")
+        return float(value)
+
+    @property
     def seed(self):
         """The run's seed from the metadata (``None`` when unknown)."""
         return self.metadata.get("seed")

@@ -3,7 +3,7 @@
 ``Quantity(options).compute(packing)`` returns the object; results are read-only properties that
 raise :class:`NotComputedError` before ``compute``; ``to_dict()`` is the quantity's part of
 ``analysis.json``, which :func:`analyze_packing` / :func:`analyze_run` assemble. The quantities
-with a figure (solid fraction, g(r), homogeneity, size classes, wall profile) draw it with ``.plot(ax)`` through
+with a figure (solid fraction, g(r), homogeneity, size classes, wall profile, walls' forces) draw it with ``.plot(ax)`` through
 a pyplot-free function of their module, the one that ``granpack figures`` calls with the part read
 from the file (:mod:`granpack.figures`): one implementation of each figure.
 """
@@ -21,6 +21,7 @@ from granpack.analysis.order import Order
 from granpack.analysis.pair_correlation import PairCorrelation
 from granpack.analysis.report import AnalysisOptions, analyze_packing, analyze_run
 from granpack.analysis.solid_fraction import SolidFraction
+from granpack.analysis.wall_forces import WallForces
 from granpack.analysis.wall_profile import WallProfile
 
 __all__ = [
@@ -36,6 +37,7 @@ __all__ = [
     "Order",
     "PairCorrelation",
     "SolidFraction",
+    "WallForces",
     "WallProfile",
     "analyze_packing",
     "analyze_run",

@@ -9,7 +9,9 @@ frictional packing's rule, constraint count and sliding contacts under ``frictio
 wall_force_over_weight, ...}, ``interpenetration`` {max, mean, expansion_k, ...}, ``homogeneity``
 {z, proportions, ...}, ``size_classes`` {sieves, passing, profile, coordination, ...; a packing of
 several sizes only}, ``wall_profile`` {distance, solid_fraction, section_solid_fraction, N, Q00, ...;
-a box's or a cylinder's packing only, whose bulk figures are those of its core}, ``grain_shapes`` {elongation, flatness, sphericity, convexity: one value per
+a box's or a cylinder's packing only, whose bulk figures are those of its core}, ``walls``
+{floor_vertical, side_vertical, side_normal, depth, vertical_stress, janssen, ...; the walls' forces
+as shares of the weight, against the depth, and the fit of Janssen's law; a container's only}, ``grain_shapes`` {elongation, flatness, sphericity, convexity: one value per
 grain}, ``n_particles``, ``populations`` (each with its coordination, order, shape descriptors and
 shape classes), ``seed``, ``version``; extras:
 ``bulk`` (the region every bulk figure uses), ``status``, ``warnings``. Undefined figures are
@@ -36,6 +38,7 @@ from granpack.analysis.order import Order
 from granpack.analysis.pair_correlation import PairCorrelation
 from granpack.analysis.size_classes import SizeClasses
 from granpack.analysis.solid_fraction import SolidFraction
+from granpack.analysis.wall_forces import WallForces
 from granpack.analysis.wall_profile import WallProfile
 from granpack.equilibrium import EquilibriumCriteria, criteria_of
 from granpack.errors import InputError
@@ -81,6 +84,8 @@ class AnalysisOptions:
         wall_bin_width: shells of the solid-fraction profile against the distance from the side
             walls (``wall_profile``, a container's packing only).
         wall_grain_bin_width: shells of the profiles over grain centres (coordination, order).
+        wall_force_bin_height: depth bins of the walls' forces and the vertical stress (``walls``,
+            a container's packing only), in d.
     """
 
     n_bottom: float = 2.0
@@ -101,6 +106,7 @@ class AnalysisOptions:
     n_wall: float = 2.0
     wall_bin_width: float = 0.05
     wall_grain_bin_width: float = 0.25
+    wall_force_bin_height: float = 1.0
 
 
 #: the order figures of a population, and of a shape class (without the isotropic baseline)
@@ -187,6 +193,7 @@ def _compute(packing: Packing, opt: AnalysisOptions) -> tuple[SolidFraction, tup
             slab = computed["coordination"] if core == 0 else coordination(0.0)
             computed["wall_profile"] = WallProfile(z_range, opt.wall_bin_width, opt.wall_grain_bin_width,
                                                    coordination=slab).compute(packing)
+            computed["walls"] = WallForces(opt.wall_force_bin_height, z_surface=sf.z_surface).compute(packing)
     return sf, z_range, computed
 
 
@@ -245,6 +252,7 @@ def analyze_packing(packing: Packing, options: AnalysisOptions | None = None) ->
         "interpenetration": computed["interpenetration"].to_dict(),
         "homogeneity": computed["homogeneity"].to_dict(),
         **({"wall_profile": computed["wall_profile"].to_dict()} if "wall_profile" in computed else {}),
+        **({"walls": computed["walls"].to_dict()} if "walls" in computed else {}),
         **({"size_classes": classes.to_dict()} if several_sizes else {}),
         "warnings": messages,
     }
@@ -296,6 +304,21 @@ def _bulk_region(bulk: dict, fmt) -> str:
     return f"none (surface at {fmt(bulk.get('z_surface'), '.2f')} d)"
 
 
+def _wall_rows(walls: dict | None, fmt) -> list[tuple[str, str]]:
+    """The weight the floor and the side walls carry, and the fit of Janssen's law (a container's)."""
+    if not walls:
+        return []
+    rows = [("weight on the floor / the side walls",
+             f"{fmt(walls['floor_vertical'])} / {fmt(walls['side_vertical'])} W; side walls' normal force "
+             f"{fmt(walls['side_normal'])} W")]
+    fit = walls["janssen"]
+    if fit["K"] is not None and math.isfinite(fit["K"]):
+        rows.append((f"Janssen fit (μ_w = {walls['wall_friction']:g})",
+                     f"K = {fmt(fit['K'], '.3f')}, σ∞ = {fmt(fit['saturation_stress'], '.3g')} ρgd, "
+                     f"λ = {fmt(fit['length'], '.3g')} d; K at the wall {fmt(fit['K_wall'], '.3f')}"))
+    return rows
+
+
 def summary_rows(result: dict) -> list[tuple[str, str]]:
     """Headline figures of an :func:`analyze_packing` result as ``(label, formatted value)`` rows."""
 
@@ -332,6 +355,7 @@ def summary_rows(result: dict) -> list[tuple[str, str]]:
             rows.append((f"Ns / Nd / Nt / Nc ({label})", " / ".join(fmt(other[k], ".3f") for k in ("Ns", "Nd", "Nt", "Nc"))))
     if wall:
         rows.append((f"solid fraction (whole {wall['container']} section)", fmt(wall["section_solid_fraction"])))
+    rows += _wall_rows(result.get("walls"), fmt)
     rows += [
         ("Q00 / Q22", f"{fmt(order['Q00'])} / {fmt(order['Q22'])} (axis {order['director_axis'] or '-'})"),
         (
