@@ -53,9 +53,9 @@ alike have ``f = 6``:
   on the backbone, against the isostatic ``C = 2 f = 12`` (frictionless: 6 for a sphere, 12 for a
   polyhedron, averaged over the backbone grains); ``hyperstaticity`` ``(C - C_iso) / 2`` is the
   excess of contact force unknowns over equilibrium equations per grain. With simple contacts only
-  the isostatic count is ``N = 4`` (3 N / 2 = 6), the frictional spheres' value of Agnolin & Roux,
-  Phys. Rev. E 76, 061302 (2007), who find 4.5 at μ = 0.3 on the force-carrying backbone, and the
-  large-μ limit of the poured piles of Silbert et al., Phys. Rev. E 65, 031304 (2002). Without
+  the isostatic count is ``N = 4`` (3 N / 2 = 6), the lower bound of rigid frictional spheres
+  (Agnolin & Roux, Phys. Rev. E 76, 061302 (2007), find 4.5 at μ = 0.3 on the force-carrying
+  backbone). Without
   gravity two opposite forces hold a grain, and their rattlers are the grains without force; under
   gravity every grain carries its weight, hence the three points.
 - **Sliding contacts**: a force-bearing contact of a backbone grain slides when its resultant is on
