@@ -14,7 +14,7 @@ from scipy.spatial import ConvexHull
 
 from granpack.contact.detect import _Tables
 from granpack.contact.narrowphase import _KEEP_BAND, _general_tables, _scratch, poly_poly
-from granpack.contact.separating_axes import SatResult, _sat, world_geometry
+from granpack.contact.separating_axes import GENERAL, SatResult, _general_axes, _sat, world_geometry
 from granpack.rotations import quat_to_matrix, random_quaternions
 from granpack.shapes import ConvexPolyhedron, ShapeTable
 
@@ -152,7 +152,10 @@ def test_minkowski_edge_pairs_give_the_exhaustive_separation_and_manifold(pairs)
         a, b = 2 * k, 2 * k + 1
         ka, kb = kind[a], kind[b]
         o = position[b] - position[a]
-        sat = _sat(geo, a, b, ka, kb, *o, symmetric, gauss, ALERT, inradius[ka] + inradius[kb], margin, X, Y, -1)
+        sat = _sat(geo, a, b, ka, kb, *o, symmetric, ALERT, inradius[ka] + inradius[kb], margin, X, Y, -1)
+        assert sat.axis == GENERAL  # random hulls are not centrally symmetric
+        sat = _general_axes(geo, a, b, ka, kb, *o, gauss, symmetric.axis_start, ALERT, inradius[ka] + inradius[kb],
+                            margin, X)
         assert not sat.far
         va = shapes[ka].vertices @ quat_to_matrix(quat[a]).T
         vb = shapes[kb].vertices @ quat_to_matrix(quat[b]).T + o

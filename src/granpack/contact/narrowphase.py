@@ -72,7 +72,7 @@ from granpack.contact.manifold import (
     _gjk_manifold,
     _merge_points,
 )
-from granpack.contact.separating_axes import GeneralTables, _sat, world_geometry
+from granpack.contact.separating_axes import GENERAL, GeneralTables, _general_axes, _sat, world_geometry
 
 __all__ = ["CandidatePairs", "KindBounds", "KindTables", "PreviousNormals", "Scratch", "narrow_phase", "world_geometry"]
 
@@ -625,8 +625,11 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
             elif is_sphere[ki]:
                 cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
             else:
-                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, gauss, a, inradius[kj] + inradius[ki],
+                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, a, inradius[kj] + inradius[ki],
                            _KEEP_BAND * eps_f, X, Y, pair_axis[q])
+                if sat.axis == GENERAL:
+                    sat = _general_axes(geo, j, i, kj, ki, ox, oy, oz, gauss, symmetric.axis_start, a,
+                                        inradius[kj] + inradius[ki], _KEEP_BAND * eps_f, X)
                 pair_axis[q] = sat.axis
                 if sat.far:
                     continue

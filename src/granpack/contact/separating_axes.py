@@ -85,6 +85,10 @@ GeneralTables = namedtuple("GeneralTables", [
 SatResult = namedtuple("SatResult", ["far", "sfa", "kfa", "gfa", "sfb", "kfb", "gfb", "se", "ie", "je", "ex", "ey",
                                      "ez", "axis"])
 
+#: The ``axis`` of a :class:`SatResult` that :func:`_sat` leaves undecided (bodies not both
+#: centrally symmetric): :func:`_general_axes` finishes the test.
+GENERAL = -2
+
 
 @jit(parallel=True)
 def world_geometry(position, quaternion, kind, vertex_start, vertices, face_start, face_normals, axis_start, face_axes,
@@ -235,7 +239,7 @@ def _separated(axis):
 
 
 @jit(inline="always")
-def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X, Y, cached):
+def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, alert, rin, margin, X, Y, cached):
     """Separating-axis test between polyhedra ``a`` (A, centred) and ``b`` (B, offset ``o``, d).
 
     ``geo`` is the :class:`WorldGeometry` of :func:`world_geometry`, ``ka``, ``kb`` the two kinds.
@@ -249,11 +253,14 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
     (docs/design-notes.md, "Separating-axis test: speed").
 
     Axes: both bodies' face axes, then the edge-edge axes: every pair of edge directions of two
-    symmetric bodies (:func:`_direction_pair_axes`), otherwise the pairs of edges that make a
-    face of the Minkowski difference (:func:`_minkowski_edge_axes`, ``gauss`` its
-    :class:`GeneralTables`). Either way the best separation of an overlapping pair is the largest
-    over all directions, minus the penetration depth; that of a separated pair is a lower bound of
-    the distance (the manifold's gaps are exact: :mod:`granpack.contact.narrowphase`).
+    symmetric bodies (:func:`_direction_pair_axes`). A pair of bodies that are not both
+    symmetric, once the cheap tries below have not separated it, is returned undecided (``axis``
+    :data:`GENERAL`) with its vertex block in ``X``, for :func:`_general_axes` to finish: that
+    test needs the :class:`GeneralTables`, and a bundle handed to this inlined function would be
+    increfed and decrefed, every array of it, at every pair of the narrow phase. Either way the
+    best separation of an overlapping pair is the largest over all directions, minus the
+    penetration depth; that of a separated pair is a lower bound of the distance (the manifold's
+    gaps are exact: :mod:`granpack.contact.narrowphase`).
 
     Edge-edge axes are pruned by the bound of the module docstring (``rin = rho_A + rho_B``, d;
     ``margin``, d, the widest hysteresis band, ``_KEEP_BAND eps_f`` of
@@ -268,9 +275,10 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
         k`` for B's ``axis_start[b] + k``, ``nfa + nfb + i ndb + j`` for the edge-direction pair
         ``(direction_start[a] + i, direction_start[b] + j)`` (rows of ``geo``), -1 for the centre
         line (``nfa``, ``nfb`` the face-axis counts, ``ndb`` B's edge-direction count). A pair that
-        is not separated has ``axis`` -1.
+        is not separated has ``axis`` -1, an undecided one :data:`GENERAL`.
     """
     vertex_start, axis_start, rv, ax = geo.vertex_start, geo.axis_start, geo.vertices, geo.axes
+    direction_start, dr = geo.direction_start, geo.directions
     half_start, half, kind_axis_start, support = (symmetric.half_start, symmetric.half, symmetric.axis_start,
                                                   symmetric.axis_support)
     a0, a1, b0, b1 = vertex_start[a], vertex_start[a + 1], vertex_start[b], vertex_start[b + 1]
@@ -294,12 +302,13 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
         _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
     nfa = aa1 - aa0
     nfb = ab1 - ab0
+    da0, da1, db0, db1 = direction_start[a], direction_start[a + 1], direction_start[b], direction_start[b + 1]
     # cheap first tries: the cached axis, then the centre-to-centre direction
     for attempt in range(2):
         if attempt == 0:
             if cached < 0:
                 continue
-            ux, uy, uz = _axis_of_code(geo, a, b, cached, nfa, nfb)
+            ux, uy, uz = _axis_of_code(ax, dr, aa0, ab0, da0, db0, db1 - db0, cached, nfa, nfb)
         else:
             dd = math.sqrt(ox * ox + oy * oy + oz * oz)
             if dd == 0.0:
@@ -313,18 +322,7 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
         if s > alert:
             return _separated(cached if attempt == 0 else -1)
     if not sym:
-        extent, inradius = gauss.axis_extent, gauss.inradius
-        far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert, True)
-        if far:
-            return _separated(kfa - aa0)
-        far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert, False)
-        if far:
-            return _separated(nfa + kfb - ab0)
-        far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb,
-                                                                 alert, max(sfa, sfb), margin, rin)
-        if far:
-            return _separated(nfa + nfb + code)
-        return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
+        return SatResult(False, -inf, -1, 1.0, -inf, -1, 1.0, -inf, -1, -1, 0.0, 0.0, 0.0, GENERAL)
     sfa, kfa, gfa = -inf, -1, 1.0
     for k in range(aa0, aa1):
         s, g = _signed_gap(ox, oy, oz, ax[k, 0], ax[k, 1], ax[k, 2], support[sa0 + k - aa0],
@@ -341,11 +339,39 @@ def _sat(geo, a, b, ka, kb, ox, oy, oz, symmetric, gauss, alert, rin, margin, X,
             return _separated(nfa + k - ab0)
         if s > sfb:
             sfb, kfb, gfb = s, k, g
-    far, se, ie, je, ex, ey, ez, code = _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert,
+    far, se, ie, je, ex, ey, ez, code = _direction_pair_axes(dr, da0, da1, db0, db1, ox, oy, oz, Y, nha, nhb, alert,
                                                              max(sfa, sfb), margin, rin)
     if far:
         return _separated(nfa + nfb + code)
     _gather(rv, a0, a1, b0, b1, ox, oy, oz, X)
+    return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
+
+
+@jit
+def _general_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, kind_axis_start, alert, rin, margin, X):
+    """The separating-axis test of two bodies that are not both centrally symmetric, for a pair
+    that :func:`_sat` (same arguments, ``kind_axis_start`` that of its ``symmetric``) left
+    :data:`GENERAL` with its vertex block in ``X``: both bodies' face axes (:func:`_face_axes`),
+    then the pairs of edges that make a face of the Minkowski difference
+    (:func:`_minkowski_edge_axes`, ``gauss`` its :class:`GeneralTables`). Compiled apart, not
+    inlined, so that only the pairs that need ``gauss`` are handed it. Returns a
+    :class:`SatResult` as :func:`_sat`."""
+    vertex_start, axis_start, ax = geo.vertex_start, geo.axis_start, geo.axes
+    na, nb = vertex_start[a + 1] - vertex_start[a], vertex_start[b + 1] - vertex_start[b]
+    aa0, aa1, ab0, ab1 = axis_start[a], axis_start[a + 1], axis_start[b], axis_start[b + 1]
+    nfa, nfb = aa1 - aa0, ab1 - ab0
+    sa0, sb0 = kind_axis_start[ka], kind_axis_start[kb]
+    extent, inradius = gauss.axis_extent, gauss.inradius
+    far, sfa, kfa, gfa = _face_axes(X, na, nb, ax, aa0, aa1, ox, oy, oz, extent, sa0, inradius[kb], alert, True)
+    if far:
+        return _separated(kfa - aa0)
+    far, sfb, kfb, gfb = _face_axes(X, na, nb, ax, ab0, ab1, -ox, -oy, -oz, extent, sb0, inradius[ka], alert, False)
+    if far:
+        return _separated(nfa + kfb - ab0)
+    far, se, ie, je, ex, ey, ez, code = _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
+                                                             max(sfa, sfb), margin, rin)
+    if far:
+        return _separated(nfa + nfb + code)
     return SatResult(False, sfa, kfa, gfa, sfb, kfb, gfb, se, ie, je, ex, ey, ez, -1)
 
 
@@ -424,18 +450,19 @@ def _face_axes(X, na, nb, ax, k0, k1, dx, dy, dz, extent, e0, rho, alert, own_is
 
 
 @jit(inline="always")
-def _axis_of_code(geo, a, b, code, nfa, nfb):
-    """World unit axis of the axis code ``code >= 0`` of :func:`_sat` for the pair ``(a, b)``
-    (``nfa``, ``nfb`` the two face-axis counts): a face axis, or the normalised cross product
-    ``c`` of the two edge directions (``c |c|^2``, a vector too short to separate anything, when
-    they have turned parallel, ``|c|^2 <= 1e-12``)."""
-    pa, pd, ax, dr = geo.axis_start, geo.direction_start, geo.axes, geo.directions
+def _axis_of_code(ax, dr, aa0, ab0, da0, db0, ndb, code, nfa, nfb):
+    """World unit axis of the axis code ``code >= 0`` of :func:`_sat` for a pair whose face axes
+    are the rows ``aa0:aa0 + nfa`` (A) and ``ab0:ab0 + nfb`` (B) of ``ax`` and edge directions the
+    rows from ``da0`` (A) and ``db0:db0 + ndb`` (B) of ``dr``: a face axis, or the normalised
+    cross product ``c`` of the two edge directions (``c |c|^2``, a vector too short to separate
+    anything, when they have turned parallel, ``|c|^2 <= 1e-12``). Arrays and row bounds, not the
+    :class:`WorldGeometry`: an inlined helper increfs and decrefs every array it is handed, at
+    each pair."""
     if code < nfa + nfb:
-        r = pa[a] + code if code < nfa else pa[b] + code - nfa
+        r = aa0 + code if code < nfa else ab0 + code - nfa
         return ax[r, 0], ax[r, 1], ax[r, 2]
-    ndb = pd[b + 1] - pd[b]
-    i = pd[a] + (code - nfa - nfb) // ndb
-    j = pd[b] + (code - nfa - nfb) % ndb
+    i = da0 + (code - nfa - nfb) // ndb
+    j = db0 + (code - nfa - nfb) % ndb
     cx = dr[i, 1] * dr[j, 2] - dr[i, 2] * dr[j, 1]
     cy = dr[i, 2] * dr[j, 0] - dr[i, 0] * dr[j, 2]
     cz = dr[i, 0] * dr[j, 1] - dr[i, 1] * dr[j, 0]
@@ -456,12 +483,19 @@ def _gather(rv, a0, a1, b0, b1, ox, oy, oz, X):
 
 
 @jit(inline="always")
-def _unit_cross(dr, i, j, ox, oy, oz, t):
+def _edge_cross_offset(dr, j, ox, oy, oz):
+    """:math:`w = e_j \\times o` for :func:`_unit_cross`, ``e_j = dr[j]`` (unit), ``o`` in d."""
+    return dr[j, 1] * oz - dr[j, 2] * oy, dr[j, 2] * ox - dr[j, 0] * oz, dr[j, 0] * oy - dr[j, 1] * ox
+
+
+@jit(inline="always")
+def _unit_cross(dr, i, j, wx, wy, wz, t):
     """The unit axis ``c / |c|``, ``c = e_i x e_j``, of the world edge directions ``dr[i]``,
     ``dr[j]``, or ``ok`` False when the axis is not worth a projection: the directions are
     parallel (``|c|^2 < 1e-12``), or ``t > 0`` (d) and :math:`(c \\cdot o)^2 < t^2 |c|^2`, i.e. the
     bound :math:`|u \\cdot o|` on the separation plus ``rho_A + rho_B`` (see :func:`_sat`) is
-    below ``t``. Computed as :math:`c \\cdot o = e_i \\cdot (e_j \\times o)`,
+    below ``t``. Computed as :math:`c \\cdot o = e_i \\cdot w` with ``w`` :math:`= e_j \\times o`
+    (d; the caller's, formed once for every ``i`` it pairs with ``j``, by :func:`_edge_cross_offset`),
     :math:`|c|^2 = 1 - (e_i \\cdot e_j)^2`, so that a pruned axis is never formed.
 
     Returns ``(ok, ux, uy, uz)``.
@@ -470,9 +504,6 @@ def _unit_cross(dr, i, j, ox, oy, oz, t):
     c2 = 1.0 - cos * cos
     if c2 < 1e-12:
         return False, 0.0, 0.0, 0.0
-    wx = dr[j, 1] * oz - dr[j, 2] * oy
-    wy = dr[j, 2] * ox - dr[j, 0] * oz
-    wz = dr[j, 0] * oy - dr[j, 1] * ox
     co = dr[i, 0] * wx + dr[i, 1] * wy + dr[i, 2] * wz
     if t > 0.0 and co * co < t * t * c2:
         return False, 0.0, 0.0, 0.0
@@ -484,8 +515,9 @@ def _unit_cross(dr, i, j, ox, oy, oz, t):
 
 
 @jit(inline="always")
-def _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert, best, margin, rin):
-    """Edge-edge axes of two centrally symmetric bodies: every pair of their edge directions.
+def _direction_pair_axes(dr, da0, da1, db0, db1, ox, oy, oz, Y, nha, nhb, alert, best, margin, rin):
+    """Edge-edge axes of two centrally symmetric bodies: every pair of their edge directions, the
+    rows ``da0:da1`` (A) and ``db0:db1`` (B) of ``dr``.
 
     Each has 3 to 6 directions (pinacoids: 6), so trying every pair costs less than finding the
     pairs that are faces of the Minkowski difference. ``Y`` holds the half vertices of
@@ -495,15 +527,13 @@ def _direction_pair_axes(geo, a, b, ox, oy, oz, Y, nha, nhb, alert, best, margin
 
     Returns ``(far, se, ie, je, ex, ey, ez, code)`` as :func:`_minkowski_edge_axes`.
     """
-    dr = geo.directions
-    da0, da1 = geo.direction_start[a], geo.direction_start[a + 1]
-    db0, db1 = geo.direction_start[b], geo.direction_start[b + 1]
     ndb = db1 - db0
     se, ie, je, ex, ey, ez = -math.inf, -1, -1, 0.0, 0.0, 0.0
     t = best - margin + rin - 1e-12
     for j in range(db0, db1):
+        wx, wy, wz = _edge_cross_offset(dr, j, ox, oy, oz)
         for i in range(da0, da1):
-            ok, cx, cy, cz = _unit_cross(dr, i, j, ox, oy, oz, t)
+            ok, cx, cy, cz = _unit_cross(dr, i, j, wx, wy, wz, t)
             if not ok:
                 continue
             s, g = _signed_gap(ox, oy, oz, cx, cy, cz, _half_support(Y, 0, nha, cx, cy, cz),
@@ -616,7 +646,8 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
             if n1q * n2q >= 0.0 or cp * n2q <= 0.0:
                 continue
             i, j = edge_dir[ea], edge_dir[eb0 + e]
-            ok, cx, cy, cz = _unit_cross(dr, da0 + i, db0 + j, ox, oy, oz, t)
+            wx, wy, wz = _edge_cross_offset(dr, db0 + j, ox, oy, oz)
+            ok, cx, cy, cz = _unit_cross(dr, da0 + i, db0 + j, wx, wy, wz, t)
             if not ok:
                 continue
             # the axis lies in A's edge's normal cone (the arc n1..n2) once turned towards

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.stats import truncnorm
 
 __all__ = ["table_classes", "lognormal_classes", "lognormal_quantiles", "MAX_CLASSES", "MAX_CLASSES_PER_RATIO",
            "DEFAULT_CLASSES_PER_RATIO"]
@@ -38,6 +37,8 @@ def lognormal_quantiles(median: float, log_sd: float, classes: int) -> np.ndarra
     ``[median]`` when ``log_sd`` is 0."""
     if log_sd == 0:
         return np.array([float(median)])
+    from scipy.stats import truncnorm  # here: scipy.stats takes 0.6 s to import, which no run should pay
+
     mu = math.log(median)
     law = truncnorm(-mu / log_sd, np.inf, loc=mu, scale=log_sd)
     return np.exp(law.ppf((np.arange(classes) + 0.5) / classes))
