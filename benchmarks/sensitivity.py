@@ -361,6 +361,10 @@ def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
             "cpu_s": round(s.get("cpu_time") or float("nan"), 1)}
 
 
+#: factors whose name is not ``<factor>-<setting>``
+WHOLE_NAME_FACTORS = ("end-game-off",)
+
+
 def rows() -> list[dict]:
     """One row per run of the sensitivity study: the reference runs of every cell first (seeds 1
     and 2 of each varied mixture, and the capped runs the ``time-600`` factor continues, from
@@ -372,7 +376,8 @@ def rows() -> list[dict]:
     kept = [path for campaign in SENSITIVITY_CAMPAIGNS for path in KEPT.glob(f"{campaign}/*/seed-*/analysis.json")]
     for path in sorted(kept):
         factor, _, mixture = path.parent.parent.name.partition("_")
-        out.append(_row(path.parent, mixture, factor, factor.partition("-")[2]))
+        setting = "" if factor in WHOLE_NAME_FACTORS else factor.partition("-")[2]
+        out.append(_row(path.parent, mixture, factor, setting))
     return out
 
 
