@@ -430,6 +430,22 @@ def _emit(i, j, sx, sy, nx, ny, nz, cx, cy, cz, pts, gp, cnt, eps_f, eps_pt, bod
     return m, npt
 
 
+@jit(inline="always")
+def _nearest_wall(xi, yi, zi, container, lx, ly):
+    """Distance (d) from the centre ``x_i`` to the nearest wall of the container (``container``
+    and ``lx``, ``ly`` as :func:`narrow_phase`): the floor, the box's four walls, the cylinder.
+    A body farther than its circumscribed radius plus the wall alert from every wall has no wall
+    manifold, and is not handed to :func:`_walls` (a compiled call that increfs every array it is
+    given)."""
+    near = zi
+    if container == 1:
+        near = min(near, xi, lx - xi, yi, ly - yi)
+    elif container == 2:
+        dx, dy = xi - 0.5 * lx, yi - 0.5 * ly
+        near = min(near, 0.5 * lx - math.sqrt(dx * dx + dy * dy))
+    return near
+
+
 @jit
 def _walls(i, xi, yi, zi, ri, sphere, container, lx, ly, aw, geo, eps_f, eps_pt, pts, gp, out, m, npt):
     """The manifolds of body ``i`` (centre ``x_i``, circumscribed radius ``ri``, d; ``sphere``:
@@ -592,8 +608,10 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
         ki = kind[i]
         xi, yi, zi = position[i, 0], position[i, 1], position[i, 2]
         ri = radius[ki]
-        m, npt = _walls(i, xi, yi, zi, ri, is_sphere[ki], container, lx, ly, min(alert, 2.0 * reach[i]), geo, eps_f,
-                        eps_pt, pts, gp, out, m, npt)
+        aw = min(alert, 2.0 * reach[i])
+        if _nearest_wall(xi, yi, zi, container, lx, ly) - ri < aw:
+            m, npt = _walls(i, xi, yi, zi, ri, is_sphere[ki], container, lx, ly, aw, geo, eps_f, eps_pt, pts, gp, out,
+                            m, npt)
         for q in range(pair_start[i], pair_start[i + 1]):
             j = pair_j[q]
             kj = kind[j]
