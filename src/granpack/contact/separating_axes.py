@@ -590,9 +590,8 @@ def _minkowski_edge_axes(geo, a, b, ka, kb, ox, oy, oz, gauss, X, na, nb, alert,
     oa0, ob0 = face_start[ka], face_start[kb]
     ea0, ea1, eb0, eb1 = edge_start[ka], edge_start[ka + 1], edge_start[kb], edge_start[kb + 1]
     ndb = pd[b + 1] - db0
-    t = best - margin + rin - 1e-12
-    # the edges' own bound (below) is compared with the best separation less the margin
-    t_edge = best - margin - 1e-12
+    # the axes' bound (_unit_cross) is compared with t, the edges' own bound (below) with t_edge
+    t, t_edge = best - margin + rin - 1e-12, best - margin - 1e-12
     rho_a, rho_b = inradius[ka], inradius[kb]
     slack = 1e-9 * math.sqrt(ox * ox + oy * oy + oz * oz)
     for f in range(pf[a + 1] - fa0):
