@@ -596,6 +596,7 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
     X, Y = scr.vertex_block, np.empty((3, 2 * max_points))
     pts, gp = np.empty((max_points, 3)), np.empty(max_points)
     eps_pt = 1e-3 * eps_f
+    margin = _KEEP_BAND * eps_f  # the widest hysteresis band, which the separating-axis test's pruning keeps
     kind, is_sphere, radius = tab.kind, bounds.is_sphere, bounds.radius
     gauss = _general_tables(tab, bounds.axis_extent, bounds.edge_arc, len(radius))
     inradius = gauss.inradius
@@ -643,11 +644,10 @@ def narrow_phase(position, geo, tab, bounds, symmetric, pairs, previous, lx, ly,
             elif is_sphere[ki]:
                 cnt, nx, ny, nz = _poly_sphere(j, ri, ox, oy, oz, geo, tab, a, scr, one, pts, gp)
             else:
-                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, a, inradius[kj] + inradius[ki],
-                           _KEEP_BAND * eps_f, X, Y, pair_axis[q])
+                rin = inradius[kj] + inradius[ki]
+                sat = _sat(geo, j, i, kj, ki, ox, oy, oz, symmetric, a, rin, margin, X, Y, pair_axis[q])
                 if sat.axis == GENERAL:
-                    sat = _general_axes(geo, j, i, kj, ki, ox, oy, oz, gauss, symmetric.axis_start, a,
-                                        inradius[kj] + inradius[ki], _KEEP_BAND * eps_f, X)
+                    sat = _general_axes(geo, j, i, kj, ki, ox, oy, oz, gauss, symmetric.axis_start, a, rin, margin, X)
                 pair_axis[q] = sat.axis
                 if sat.far:
                     continue
