@@ -81,7 +81,7 @@ STUDY = ROOT / "examples" / "study.toml"
 CONFIGS = HERE / "validation" / "configs"
 KEPT = HERE / "validation" / "runs"
 #: the campaigns of ``KEPT`` that belong to the sensitivity study (the others are other validations)
-SENSITIVITY_CAMPAIGNS = ("sensitivity", "screening", "time-600-seed-*", "bidisperse*")
+SENSITIVITY_CAMPAIGNS = ("sensitivity", "screening", "time-600-seed-*", "bidisperse*", "flat-elongated")
 STUDY_RUNS = HERE / "study"
 CSV = HERE / "validation" / "sensitivity.csv"
 FIGURE = ROOT / "docs" / "validation" / "figures" / "sensitivity.png"
@@ -135,6 +135,14 @@ BIDISPERSE: tuple[tuple[str, str, dict, int], ...] = (
     ("end-game-off", "pinacoids-small-30", {"end_game": {"mode": "none"}}, 1),
     ("size-ratio", "pinacoids-small-30", {"small_size": 1 / 5}, 1),
 )
+#: (factor, mixture of examples/study.toml, overrides) of the flat & elongated series' runs, one seed:
+#: the study engine's elements, those with the study's cell and deposit too, and the end game off
+FLAT_ELONGATED: tuple[tuple[str, str, dict], ...] = (
+    ("engine-lmgc", "flat-elongated-100", LMGC_ENGINE),
+    ("study-protocol", "flat-elongated-100", {**LMGC_ENGINE, "lateral_size": 8.0, "deposit": {"method": "lmgc"}}),
+    ("end-game-off", "flat-elongated-100", {"end_game": {"mode": "none"}}),
+)
+
 #: the column a replanned mixture is given, d, and its narrowest cell, d (the study's rule)
 PLANNED_COLUMN, PLANNED_LEAST_CELL = 8.0, 3.0
 
@@ -286,6 +294,13 @@ def write_configs() -> list[Path]:
             f"{seeds}).\nWritten by `python benchmarks/sensitivity.py configs`; do not edit by hand.",
             seeds, study["base"], mixtures))
         written.append(path)
+    mixtures = [_varied(study, factor, name, overrides) for factor, name, overrides in FLAT_ELONGATED]
+    path = CONFIGS / "flat-elongated.toml"
+    path.write_text(_campaign_text(
+        "The flat & elongated grains under the study engine's elements, those with the study's 8 d cell\n"
+        "and LMGC90's deposit too, and with the end game's damping off (seed 1).\n"
+        "Written by `python benchmarks/sensitivity.py configs`; do not edit by hand.", 1, study["base"], mixtures))
+    written.append(path)
     for seed, names in CAPPED.items():
         base = copy.deepcopy(study["base"])
         base["seed"] = seed
@@ -362,7 +377,7 @@ def _row(run: Path, mixture: str, factor: str, setting: str) -> dict:
 
 
 #: factors whose name is not ``<factor>-<setting>``
-WHOLE_NAME_FACTORS = ("end-game-off",)
+WHOLE_NAME_FACTORS = ("end-game-off", "study-protocol")
 
 
 def rows() -> list[dict]:
