@@ -19,7 +19,8 @@ from granpack.config import load_config_dict
 from granpack.contact import SIMPLE, TRIPLE, ContactSet, detect
 from granpack.deposit import deposit
 from granpack.equilibrium import wall_force
-from granpack.io.gsd import read_packing, write_packing
+from granpack.io.container import container_surface, write_container_stl
+from granpack.io.gsd import frame_origin, read_packing, write_packing
 from granpack.io.json import read_json
 from granpack.io.vtk import write_vtk
 from granpack.mesh.surfaces import grain_surfaces
@@ -346,6 +347,48 @@ def test_gsd_and_vtk_carry_the_container(tmp_path, container):
         for wall in sides:
             np.testing.assert_allclose(wall_height(wall, ends[warm.body_j == wall, 1]), 0.0, atol=1e-12)
 
+@pytest.mark.parametrize("container", ["box", "cylinder"])
+def test_the_container_for_ovito_lies_where_the_gsd_file_puts_the_grains_and_faces_them(tmp_path, container):
+    state = _poured(container, n=30)
+    packing = Packing(state, ContactSet.empty(), H, ["pinacoids"], {})
+    final = write_packing(tmp_path / "final.gsd", packing)
+    import gsd.hoomd
+
+    with gsd.hoomd.open(final) as frames:
+        frame = frames[0]
+    origin = frame.log["granpack/origin"]
+    np.testing.assert_array_equal(origin, frame_origin(packing))
+    mesh = meshio.read(write_container_stl(tmp_path / "container.stl", packing, origin))
+    triangles = mesh.cells_dict["triangle"]
+    k = 4 if container == "box" else 96
+    assert len(triangles) == 3 * k  # the floor's fan, two per wall facet
+    lz = frame.configuration.box[2]
+    z = mesh.points[:, 2]  # float32 in STL
+    np.testing.assert_allclose([z.min(), z.max()], [-0.5 * lz, 0.5 * lz], atol=1e-5)
+    xy = mesh.points[:, :2] + origin[:2]
+    side = np.abs(z + 0.5 * lz) > 1e-4
+    if container == "cylinder":  # every corner off the floor's centre on the cylinder
+        rim = np.linalg.norm(xy - AXIS, axis=1) > 1e-4
+        np.testing.assert_allclose(np.linalg.norm(xy[rim] - AXIS, axis=1), R_CYL, atol=1e-5)
+    else:
+        assert set(np.round(xy[side].ravel(), 5).tolist()) == {0.0, L}
+    # every facet faces into the container: the floor up, the walls towards the axis
+    p = mesh.points[triangles]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    centroid = p.mean(axis=1) + origin
+    np.testing.assert_array_less(0.0, normal[:k, 2])
+    inward = np.column_stack([AXIS - centroid[k:, :2], np.zeros(2 * k)])
+    np.testing.assert_array_less(0.0, np.einsum("ij,ij->i", normal[k:], inward))
+    surface = container_surface(packing)
+    assert len(surface.triangles) == len(surface.quads) == len(surface.wall) == k
+
+
+def test_a_periodic_cell_has_no_container_surface():
+    state = state_of([Sphere(1.0)], [0], [[1.0, 1.0, 0.5]], [IDENTITY], "periodic")
+    with pytest.raises(ValueError, match="periodic"):
+        container_surface(Packing(state, ContactSet.empty(), H, ["spheres"], {}))
+
+
 def test_grain_surfaces_in_a_container_are_the_grains_where_they_are():
     state = _poured("box", n=10)
     state.position[0, 0] = -1e-4  # pressed slightly into the wall x = 0: not wrapped to x = L
@@ -382,6 +425,7 @@ def test_a_run_pours_and_settles_inside_its_container(tmp_path, container):
     assert _outside(packing.state) < 2e-3
     sides = packing.contacts.body_j[packing.contacts.body_j < -1]
     assert len(sides) and set(sides.tolist()) <= ({-2, -3, -4, -5} if container == "box" else {-6})
+    assert meshio.read(tmp_path / "container.stl").points.shape[0] > 0
 
 
 def test_each_vertex_on_the_cylinder_is_warm_started_from_its_own_manifold():

@@ -427,7 +427,7 @@ def run(
     the checkpoint (exit status 130).
     """
     from granpack.config import load_config
-    from granpack.io.run_folder import CONFIG_FILE, FINAL_FILE, SUMMARY_FILE
+    from granpack.io.run_folder import CONFIG_FILE, CONTAINER_FILE, FINAL_FILE, SUMMARY_FILE
 
     if _is_campaign_file(config):
         raise InputError(f"{config}: a campaign file ([[mixtures]]), not a run config: run it with "
@@ -440,11 +440,12 @@ def run(
     summary = _run_and_report(cfg, out, resume=resume, overwrite=overwrite, again=again, json_output=json_output,
                               layout=tuple(_layout_warnings(_toml_of(config))),
                               source=f"{config}" + (f" with --seed {seed}" if seed is not None else ""))
+    names = (CONFIG_FILE, FINAL_FILE, SUMMARY_FILE, *((CONTAINER_FILE,) if (out / CONTAINER_FILE).is_file() else ()))
     if json_output:
-        _print_json({"out": str(out), "files": {name: str(out / name) for name in (CONFIG_FILE, FINAL_FILE, SUMMARY_FILE)},
-                     "summary": summary})
+        _print_json({"out": str(out), "files": {name: str(out / name) for name in names}, "summary": summary})
         return
-    typer.echo(f"files: {out / FINAL_FILE}, {out / SUMMARY_FILE}; next: granpack analyze {out}")
+    container = f" (OVITO: add {out / CONTAINER_FILE} to the scene)" if CONTAINER_FILE in names else ""
+    typer.echo(f"files: {out / FINAL_FILE}{container}, {out / SUMMARY_FILE}; next: granpack analyze {out}")
 
 
 @app.command()

@@ -44,11 +44,13 @@ from granpack.contact import ContactSet
 from granpack.deposit import deposit
 from granpack.errors import InputError, RunInterrupted
 from granpack.io.atomic import write_text_atomic
-from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
+from granpack.io.container import write_container_stl
+from granpack.io.gsd import append_frame, frame_origin, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.io.run_folder import (
     CHECKPOINT_FILE,
     CONFIG_FILE,
+    CONTAINER_FILE,
     FINAL_FILE,
     PROGRESS_FILE,
     SUMMARY_FILE,
@@ -239,7 +241,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     wall_start = time.perf_counter()
     resumed = _resume_from(out_dir, config, mixture, source) if resume else None  # refused before anything is written
     write_text_atomic(out_dir / CONFIG_FILE, config_text)
-    for stale in (SUMMARY_FILE, FINAL_FILE):
+    for stale in (SUMMARY_FILE, FINAL_FILE, CONTAINER_FILE):
         (out_dir / stale).unlink(missing_ok=True)
     if resumed is None:
         (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
@@ -269,7 +271,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         status = run.run((bar, checkpoints))
     record.clock.stamp()
     summary = _summary(config, run, status)
-    write_packing(out_dir / FINAL_FILE, run.packing({"status": status, "summary": _headline(summary)}))
+    final = run.packing({"status": status, "summary": _headline(summary)})
+    write_packing(out_dir / FINAL_FILE, final)
+    if not final.box.periodic:
+        write_container_stl(out_dir / CONTAINER_FILE, final, frame_origin(final))
     write_json(out_dir / SUMMARY_FILE, summary)
     write_text_atomic(out_dir / TIMELINE_FILE, timeline_csv(record.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)

@@ -23,8 +23,8 @@ One frame per file. Layout:
   ``log/contacts/{body_i, body_j, shift, normal, ctype, point_start, point, gap, impulse}``.
 - Run data: ``log/granpack/{format, lateral_size, time, time_step, periodic, wall, origin}``
   (``periodic`` ``(1, 1, 0)`` for a periodic cell, ``(0, 0, 0)`` in a box or a cylinder, whose
-  walls OVITO does not draw: the box's walls are the GSD box's sides, the cylinder is inscribed
-  in them; ``granpack vtk`` writes its surface) and JSON text stored as uint8 arrays:
+  walls OVITO does not draw from the file: the box's walls are the GSD box's sides, the cylinder
+  is inscribed in them; a run writes their surface beside ``final.gsd``, :mod:`granpack.io.container`) and JSON text stored as uint8 arrays:
   ``log/granpack/container`` (:meth:`granpack.box.Box.to_dict`; absent in the files written
   before containers: periodic), ``log/granpack/shapes`` (the shape specs that rebuild the
   :class:`~granpack.shapes.ShapeTable` exactly), ``log/granpack/population_names``,
@@ -54,7 +54,7 @@ from granpack.packing import Packing
 from granpack.shapes import ConvexPolyhedron, Pinacoid, Shape, ShapeTable, Sphere
 from granpack.state import ParticleState
 
-__all__ = ["write_packing", "append_frame", "truncate_frames", "read_packing", "shape_spec", "shape_from_spec"]
+__all__ = ["frame_origin", "write_packing", "append_frame", "truncate_frames", "read_packing", "shape_spec", "shape_from_spec"]
 
 #: version of the layout above, stored in ``log/granpack/format``
 FORMAT_VERSION = 2
@@ -149,12 +149,19 @@ def _untext(arr) -> object:
     return json.loads(np.asarray(arr, dtype=np.uint8).tobytes().decode("utf-8"))
 
 
+def frame_origin(packing: Packing) -> np.ndarray:
+    """The centre of the GSD box of ``packing``, ``(Lx/2, Ly/2, Lz/2)`` with ``Lz`` the highest
+    grain's top + 1 d: the file's positions are the packing's less this (module docstring)."""
+    state, box = packing.state, packing.box
+    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
+    return np.array([0.5 * box.lx, 0.5 * box.ly, 0.5 * (max(top, 0.0) + 1.0)])
+
+
 def _frame(packing: Packing) -> gsd.hoomd.Frame:
     state, contacts, box = packing.state, packing.contacts, packing.box
     shapes = state.shapes.shapes
-    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
-    lz = max(top, 0.0) + 1.0
-    origin = np.array([0.5 * box.lx, 0.5 * box.ly, 0.5 * lz])
+    origin = frame_origin(packing)
+    lz = 2.0 * origin[2]
 
     f = gsd.hoomd.Frame()
     f.configuration.step = int(packing.metadata.get("step", 0))

@@ -17,14 +17,16 @@ from granpack.errors import InputError
 from granpack.io.atomic import output_folder
 from granpack.io.gsd import read_packing
 
-__all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE", "TIMELINE_FILE",
-           "PROGRESS_FILE", "ANALYSIS_FILE", "PICTURE_FILE", "CAMPAIGN_SPEC_FILE", "RUNS_TABLE", "RUNS_PARQUET",
+__all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "CONTAINER_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE",
+           "TIMELINE_FILE", "PROGRESS_FILE", "ANALYSIS_FILE", "PICTURE_FILE", "CAMPAIGN_SPEC_FILE", "RUNS_TABLE", "RUNS_PARQUET",
            "SUMMARY_TABLE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
            "config_differences", "clear_run", "claim_folder"]
 
 CONFIG_FILE = "config.toml"
 CHECKPOINT_FILE = "checkpoint.gsd"
 FINAL_FILE = "final.gsd"
+#: the inside surface of a box or a cylinder in ``final.gsd``'s frame, for OVITO (:mod:`granpack.io.container`)
+CONTAINER_FILE = "container.stl"
 SUMMARY_FILE = "summary.json"
 TRAJECTORY_FILE = "trajectory.gsd"
 TIMELINE_FILE = "timeline.csv"
@@ -46,7 +48,7 @@ SUMMARY_TABLE = "summary.csv"
 #: files of a run folder that make it "hold a run" (see :func:`claim_folder`): the run's own
 #: outputs, then what ``granpack analyze`` and ``granpack export --format png`` add
 RUN_FILES = (FINAL_FILE, SUMMARY_FILE, CHECKPOINT_FILE, TRAJECTORY_FILE, TIMELINE_FILE, PROGRESS_FILE, ANALYSIS_FILE,
-             PICTURE_FILE)
+             PICTURE_FILE, CONTAINER_FILE)
 #: files that make a folder a campaign's (``granpack campaign`` writes them): no run goes there
 CAMPAIGN_FILES = (CAMPAIGN_SPEC_FILE, RUNS_TABLE, SUMMARY_TABLE)
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the

@@ -20,11 +20,9 @@
   units of rho g d^3 (``impulse / time_step``; density 1, g = 1).
 
 - ``container.vtu`` (a box or a cylinder only, :class:`granpack.box.Box`): the container's inside
-  surface as quads, from the floor z = 0 to 1 d above the highest grain (the height of the GSD
-  file's box): the floor (a fan of triangles) and the four walls of a box, or the floor and the
-  wall of a cylinder in ``CONTAINER_SEGMENTS`` facets; cell data ``wall`` (the wall's id, -1 the floor,
-  :mod:`granpack.contact.contacts`). ParaView shows it with the grains (opacity below 1 to see
-  inside).
+  surface (:mod:`granpack.io.container`): the floor as triangles, the walls as quads; cell data
+  ``wall`` (the wall's id, -1 the floor, :mod:`granpack.contact.contacts`). ParaView shows it with
+  the grains (opacity below 1 to see inside).
 
 ``contact_count`` is the number of contact manifolds of a grain, the walls included. Lengths are
 in d. Each file is written under a temporary name and renamed.
@@ -40,6 +38,7 @@ import meshio
 import numpy as np
 
 from granpack.io.atomic import atomic_path
+from granpack.io.container import container_surface
 from granpack.packing import Packing
 from granpack.rotations import quat_to_matrix
 from granpack.shapes import ConvexPolyhedron, Shape, Sphere
@@ -49,8 +48,6 @@ __all__ = ["SurfaceMesh", "shape_surface", "grain_surfaces", "contact_counts", "
 
 #: meshio cell type of a polygon with k vertices
 _CELL_TYPE = {3: "triangle", 4: "quad"}
-#: facets of a cylinder's wall in ``container.vtu``
-CONTAINER_SEGMENTS = 96
 
 
 @dataclass(frozen=True)
@@ -230,24 +227,11 @@ def _contacts_mesh(packing: Packing) -> meshio.Mesh:
 
 
 def _container_mesh(packing: Packing) -> meshio.Mesh:
-    """The inside surface of a box or a cylinder, floor first (module docstring)."""
-    box, state = packing.box, packing.state
-    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
-    height = max(top, 0.0) + 1.0
-    if box.container == "cylinder":
-        angle = 2.0 * np.pi * np.arange(CONTAINER_SEGMENTS) / CONTAINER_SEGMENTS
-        ring = np.column_stack([0.5 * box.lx * (1.0 + np.cos(angle)), 0.5 * box.ly + 0.5 * box.lx * np.sin(angle)])
-    else:
-        ring = np.array([[0.0, 0.0], [box.lx, 0.0], [box.lx, box.ly], [0.0, box.ly]])
-    k = len(ring)
-    centre = [0.5 * box.lx, 0.5 * box.ly, 0.0]
-    points = np.vstack([np.column_stack([ring, np.zeros(k)]), np.column_stack([ring, np.full(k, height)]), [centre]])
-    a = np.arange(k)
-    floor = np.column_stack([np.full(k, 2 * k), a, (a + 1) % k])  # a fan of triangles about the centre
-    walls = np.column_stack([a, (a + 1) % k, (a + 1) % k + k, a + k])
-    # the box's walls y = 0, x = L, y = L, x = 0 in ring order; the cylinder's facets all -6
-    wall_id = np.array([-4, -3, -5, -2]) if box.container == "box" else np.full(k, -6)
-    return meshio.Mesh(points, [("triangle", floor), ("quad", walls)], cell_data={"wall": [np.full(k, -1), wall_id]})
+    """The inside surface of a box or a cylinder (:func:`granpack.io.container.container_surface`)."""
+    surface = container_surface(packing)
+    k = len(surface.wall)
+    return meshio.Mesh(surface.points, [("triangle", surface.triangles), ("quad", surface.quads)],
+                       cell_data={"wall": [np.full(k, -1), surface.wall]})
 
 
 def write_vtk(packing: Packing, out_dir: str | os.PathLike, *, sphere_segments: int = 16) -> list[Path]:
