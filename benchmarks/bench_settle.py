@@ -17,7 +17,9 @@ Cases (`--case NAME`, repeatable; default: all, in this order, about two hours o
 
     spheres-1000, pinacoids-1000, flat-elongated-1000, bidisperse-pinacoids-1000, pinacoids-3000,
     scans-1000 (the 20 scan-like grains of bench_shapes.py, written as STL into the output folder
-    and read as a "mesh" population, hulls reduced to 24 vertices)
+    and read as a "mesh" population, hulls reduced to 24 vertices), rocks-1000 (generated rocks of
+    aspect ratios 1), scans-graded-2000 (those 20 and 12 hulls of random points, graded by sieve
+    size on an 8/22 mm curve)
 
 Usage::
 
@@ -64,20 +66,32 @@ CASES = {
                        "populations": [_pinacoid(1.0, (1.0, 1.0), 1.0)]},
     # the scan-like grains of bench_shapes.py, written into the run's folder as STL files
     "scans-1000": {"n_particles": 1000, "lateral_size": 4.0, "seed": 11,
-                   "populations": [{"shape": "mesh", "files": [f"{SCAN_FOLDER}/*.stl"], "size": 1.0,
+                   "populations": [{"shape": "mesh", "files": [f"{SCAN_FOLDER}/grain-*.stl"], "size": 1.0,
                                     "volume_fraction": 1.0}]},
+    # 1000 generated rocks of aspect ratios 1 (10 rocks of 14 faces, the defaults)
+    "rocks-1000": {"n_particles": 1000, "lateral_size": 4.0, "seed": 11,
+                   "populations": [{"shape": "rock", "aspect": [1.0, 1.0], "size": 1.0, "volume_fraction": 1.0}]},
+    # a library of 32 scan-like shapes (the 20 ellipsoids and 12 hulls of random points) graded by
+    # sieve size on the 8/22 mm curve of docs/how-to/scanned-aggregate.md
+    "scans-graded-2000": {"n_particles": 2000, "lateral_size": 4.5, "seed": 11,
+                          "time_stepping": {"time_step": 5e-3},
+                          "populations": [{"shape": "mesh", "files": [f"{SCAN_FOLDER}/*.stl"],
+                                           "size_definition": "sieve", "volume_fraction": 1.0,
+                                           "grading": {"curve": "sieves", "sieves": [8.0, 11.2, 16.0, 22.4],
+                                                       "percent_passing": [0.0, 30.0, 75.0, 100.0]}}]},
 }
 
 
 def _scan_files(raw: dict, out: Path) -> Path:
     """Write the scan-like STL files a case's mesh population reads into ``out/SCAN_FOLDER``;
     returns ``out``, the folder its file patterns are relative to."""
-    from bench_shapes import write_scan_like_stls
+    from bench_shapes import write_random_hull_stls, write_scan_like_stls
 
     if any(p.get("shape") == "mesh" for p in raw["populations"]):
         folder = out / SCAN_FOLDER
         folder.mkdir(parents=True, exist_ok=True)
         write_scan_like_stls(folder)
+        write_random_hull_stls(folder)
     return out
 
 

@@ -69,6 +69,22 @@ def write_scan_like_stls(folder: Path, count: int = 20, seed: int = 1) -> list[P
     return paths
 
 
+def write_random_hull_stls(folder: Path, count: int = 12, seed: int = 2, points: int = 60) -> list[Path]:
+    """``count`` hulls of ``points`` random points each (uniform in an ellipsoid of axes 1 :
+    0.6-0.95 : 0.4-0.8, the faceted, irregular grains a crusher makes) written as STL files
+    ``hull-KK.stl`` in ``folder``; returns their paths."""
+    rng = np.random.default_rng(seed)
+    paths = []
+    for k in range(count):
+        axes = np.array([1.0, rng.uniform(0.6, 0.95), rng.uniform(0.4, 0.8)])
+        direction = rng.standard_normal((points, 3))
+        direction /= np.linalg.norm(direction, axis=1)[:, None]
+        cloud = direction * rng.uniform(0.0, 1.0, (points, 1)) ** (1.0 / 3.0) * axes
+        paths.append(folder / f"hull-{k:02d}.stl")
+        trimesh.Trimesh(cloud).convex_hull.export(paths[-1])
+    return paths
+
+
 def scan_like_shapes(folder: Path, count: int = 20, seed: int = 1) -> list:
     """The :func:`write_scan_like_stls` of ``folder`` read back as a mesh population's grains
     (hulls reduced to 24 vertices), each at circumscribed diameter 1."""
