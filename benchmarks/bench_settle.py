@@ -19,7 +19,7 @@ Cases (`--case NAME`, repeatable; default: all, in this order, about two hours o
     scans-1000 (the 20 scan-like grains of bench_shapes.py, written as STL into the output folder
     and read as a "mesh" population, hulls reduced to 24 vertices), rocks-1000 (generated rocks of
     aspect ratios 1), scans-graded-2000 (those 20 and 12 hulls of random points, graded by sieve
-    size on an 8/22 mm curve)
+    size on an 8/22 mm curve), cubes-1000 (regular cubes, 4.5 d cell, seed 3)
 
 Usage::
 
@@ -68,6 +68,11 @@ CASES = {
     "scans-1000": {"n_particles": 1000, "lateral_size": 4.0, "seed": 11,
                    "populations": [{"shape": "mesh", "files": [f"{SCAN_FOLDER}/grain-*.stl"], "size": 1.0,
                                     "volume_fraction": 1.0}]},
+    # 1000 regular cubes of circumscribed diameter 1 (edge 1/sqrt(3)), the face-to-face stacks of
+    # docs/method/grains.md; run with --set solver.friction=0.5 for the frictional pile
+    "cubes-1000": {"n_particles": 1000, "lateral_size": 4.5, "seed": 3,
+                   "populations": [{"shape": "polyhedron", "size": 1.0, "volume_fraction": 1.0,
+                                    "vertices": [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]}]},
     # 1000 generated rocks of aspect ratios 1 (10 rocks of 14 faces, the defaults)
     "rocks-1000": {"n_particles": 1000, "lateral_size": 4.0, "seed": 11,
                    "populations": [{"shape": "rock", "aspect": [1.0, 1.0], "size": 1.0, "volume_fraction": 1.0}]},
