@@ -156,6 +156,17 @@ def test_the_gradings_page_tables_every_kept_run():
         assert line in page, f"docs/gradings.md is stale: run `python benchmarks/gradings.py table` ({line[:40]})"
 
 
+def test_the_friction_page_tables_every_kept_frictional_sphere_run():
+    """docs/moulds-and-friction.md holds the rows ``python benchmarks/friction_table.py`` prints
+    from the kept frictional sphere runs, one per mu from 0 to 1."""
+    friction = _script("friction_table")
+    rows = friction.table(BENCHMARKS / "validation" / "runs" / "friction").splitlines()
+    assert [r.split(" | ")[0] for r in rows[2:]] == ["| 0", "| 0.1", "| 0.3", "| 0.5", "| 1"]
+    page = (BENCHMARKS.parent / "docs" / "moulds-and-friction.md").read_text(encoding="utf-8")
+    for line in rows:
+        assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/friction_table.py ({line[:40]})"
+
+
 def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sensitivity, tmp_path):
     def row(mixture, factor, phi, phi_bed=0.5):
         return {"mixture": mixture, "factor": factor, "phi": phi, "phi_bed": phi_bed, "status": "equilibrium"}
