@@ -653,6 +653,21 @@ def test_check_json_and_the_short_column_warning(tmp_path, capsys):
     assert code == 0 and err == ""  # the demo's pile has a bulk region
 
 
+def test_check_estimates_the_pile_height_on_the_floor_of_the_container(tmp_path, capsys):
+    """100 spheres of volume pi/6 at the one-size solid fraction 0.6 over a 6 d cylinder's section
+    (9 pi d^2) stand 100 (pi/6) / (0.6 * 9 pi) = 3.086 d high; spheres of size 2 leave the bulk
+    region's margins two sizes, 4 d, above the wall and below the surface."""
+    path = tmp_path / "mould.toml"
+    path.write_text('n_particles = 100\nlateral_size = 6.0\n[container]\nshape = "cylinder"\n'
+                    '[[populations]]\nshape = "sphere"\nsize = 1.0\nvolume_fraction = 1.0\n')
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert code == 0
+    assert "expected pile: about 3.09 d high (solid fraction 0.6 assumed over the cylinder's 28.27 d^2)" in out
+    path.write_text(path.read_text().replace("size = 1.0", "size = 2.0").replace("6.0", "8.0").replace("100", "20"))
+    code, out, err = run_main(["check", str(path)], capsys)
+    assert "below the 10 d that a bulk region needs (4 d above the wall, 2 d of bulk, 4 d below the surface)" in err
+
+
 def test_check_expects_a_mix_of_sizes_to_settle_denser(tmp_path, capsys):
     """1040 grains of study-small's pinacoids-small-30 (sizes 1 and 1/3, 30 % small, 2.25 d cell)
     fill 5.5 d at a solid fraction of 0.6, but such a pile settled at 0.72-0.74 with its surface

@@ -23,7 +23,7 @@ from granpack.config import RunConfig
 from granpack.errors import InputError
 from granpack.mixture import PHI_MIXED_SIZES, PHI_ONE_SIZE, Mixture
 
-__all__ = ["GRADING_DEVIATION", "GRADING_REFUSAL", "LEAST_GRADED_PILE", "advise", "column_warning", "friction_warning",
+__all__ = ["GRADING_DEVIATION", "GRADING_REFUSAL", "LEAST_GRADED_PILE", "advise", "column_warning", "expected_height", "friction_warning",
            "grading_warnings", "refusal", "settings_warnings", "warnings_of", "USEFUL_NARROWING"]
 
 #: largest gap between the requested and the poured sieve curves accepted without a warning
@@ -101,8 +101,10 @@ def _bulk_column(config: RunConfig) -> float:
     return (options.n_bottom + options.n_top + 1.0) * config.largest_size
 
 
-def _expected_height(config: RunConfig, mixture: Mixture) -> tuple[float, float]:
-    """The expected height of the settled pile, d, and the solid fraction it is estimated at."""
+def expected_height(config: RunConfig, mixture: Mixture) -> tuple[float, float]:
+    """The expected height of the settled pile, d, and the solid fraction it is estimated at:
+    the grains' volume over the floor's area (the cell's, the box's or the cylinder's section)
+    and that solid fraction (:meth:`granpack.mixture.Mixture.pile_height`)."""
     phi = PHI_MIXED_SIZES if mixture.has_mixed_sizes else PHI_ONE_SIZE
     return mixture.pile_height(config.floor_area, phi), phi
 
@@ -119,7 +121,7 @@ def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
     holder = {"periodic": "cell", "box": "box", "cylinder": "cylinder"}[config.container.shape]
     where = (f"{config.lateral_size:g} d cylinder" if holder == "cylinder" else
              f"{config.lateral_size:g} d x {config.lateral_size:g} d {holder}")
-    height, phi = _expected_height(config, mixture)
+    height, phi = expected_height(config, mixture)
     needed = _bulk_column(config)
     if height >= needed:
         return None
@@ -135,8 +137,8 @@ def column_warning(config: RunConfig, mixture: Mixture) -> str | None:
         remedies[0] += " (the cell is at its narrowest)"
     return (f"the settled pile will stand about {height:.2g} d high (solid fraction about {phi:g} over the "
             f"{where}), below the {needed:g} d that a bulk region "
-            f"needs ({options.n_bottom:g} d above the wall, {config.largest_size:g} d of bulk, {options.n_top:g} d below "
-            f"the surface): the bulk figures of `granpack analyze` will be nan; use {' or '.join(remedies)}")
+            f"needs ({options.n_bottom * config.largest_size:g} d above the wall, {config.largest_size:g} d of bulk, "
+            f"{options.n_top * config.largest_size:g} d below the surface): the bulk figures of `granpack analyze` will be nan; use {' or '.join(remedies)}")
 
 
 def warnings_of(config: RunConfig, mixture: Mixture) -> list[str]:
@@ -157,7 +159,7 @@ def refusal(config: RunConfig, mixture: Mixture) -> str | None:
         grading = population.grading
         curve = population.grading_curve
         what = f"{grading.curve} curve from {curve.d_min:.4g} d to {curve.d_max:.4g} d"
-        height, phi = _expected_height(config, mixture)
+        height, phi = expected_height(config, mixture)
         deviation = mixture.largest_deviation(k) if mixture.counts[k] else 1.0
         if deviation <= GRADING_REFUSAL and height >= LEAST_GRADED_PILE * config.largest_size:
             continue

@@ -263,7 +263,7 @@ def check(
     from rich.table import Table
     from rich.text import Text
 
-    from granpack.advice import advise
+    from granpack.advice import advise, expected_height
     from granpack.config import load_config
     from granpack.mixture import Mixture
 
@@ -301,6 +301,10 @@ def check(
     console.print(f"N = {cfg.n_particles}, lateral size = {cfg.lateral_size:g} d, seed = {cfg.seed}, "
                   f"alert distance = {cfg.resolved_alert_distance:g} d"
                   f"{'' if cfg.time_stepping.alert_distance is not None else ' (automatic)'}", markup=False)
+    height, phi = expected_height(cfg, mixture)
+    floor = {"periodic": "the cell's", "box": "the box's", "cylinder": "the cylinder's"}[cfg.container.shape]
+    console.print(f"expected pile: about {height:.3g} d high (solid fraction {phi:g} assumed over {floor} "
+                  f"{cfg.floor_area:.4g} d^2)", markup=False)
     for line in _settings_lines(cfg):
         console.print(line, markup=False)
     for warning in found:
