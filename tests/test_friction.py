@@ -336,3 +336,28 @@ def test_nncg_momentum_with_friction_solves_a_tall_stack_to_the_same_velocities_
     assert problem.residual(nncg) < 1e-8 and problem.residual(plain) < 1e-8
     np.testing.assert_allclose(problem.velocity(nncg), problem.velocity(plain), atol=1e-8)
     assert info_nncg.iterations < info_plain.iterations / 3
+
+
+@pytest.mark.parametrize("motion", ["spin", "slide"])
+def test_a_grain_moving_freely_on_a_frictionless_floor_is_brought_to_rest_by_the_end_game(motion):
+    """A frictional sphere spinning about the vertical on a frictionless floor, or sliding on it, has
+    its forces balanced and keeps its kinetic energy (1.2 d^3 P spinning at 0.5) for ever: the end
+    game's damping starts at the first check (every net force within its criterion) and the run
+    ends at rest, the motion damped away, where it used to end "not at rest" at max_time."""
+    from granpack.config import load_config_dict
+    from granpack.mixture import Mixture
+    from granpack.run_record import RunRecord
+    from granpack.settling import STATUS_AT_REST, Settling
+
+    config = load_config_dict({"n_particles": 1, "lateral_size": 4.0, "solver": {"friction": 0.5},
+                               "container": {"wall_friction": 0.0}, "equilibrium": {"max_time": 40.0},
+                               "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}]})
+    moving = {"spin": {"omega": np.array([[0.0, 0.0, 0.5]])}, "slide": {"velocity": np.array([[0.3, 0.2, 0.0]])}}
+    state = ParticleState(box=Box.square(4.0), shapes=ShapeTable.from_shapes([Sphere(1.0)]),
+                          kind=np.zeros(1, np.int64), population=np.zeros(1, np.int64),
+                          position=np.array([[2.0, 2.0, 0.5]]), quaternion=np.array([[1.0, 0.0, 0.0, 0.0]]),
+                          **moving[motion])
+    run = Settling(config, Mixture.from_config(config), state, None, RunRecord())
+    assert run.run() == STATUS_AT_REST and run.record.milestones.end_game
+    assert state.time < 40.0
+    assert np.abs(state.omega).max() < 1e-3 and np.abs(state.velocity).max() < 1e-3

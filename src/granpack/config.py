@@ -666,7 +666,8 @@ class EndGameConfig(_Model):
     damping_rate: _Number = _setting(1.0, "1/sqrt(d/g)", gt=0, description="Rate of the viscous damping.")
     damping_below: _Number = _setting(
         1e-3, "d^3 P", gt=0, description="Kinetic criterion (largest kinetic energy per grain) below which the "
-        "end game starts, for good.")
+        "end game starts, for good; it starts too at the first check whose net forces meet their criterion "
+        "(grains moving freely, as a grain spinning in place or sliding on a frictionless floor).")
     shake_speed: _Number = _setting(
         0.0, "sqrt(g d)", ge=0, description="Speed of a shake: each time the pile comes near rest but fails the "
         "criteria (kinetic criterion below `shake_below`, at most once per `shake_interval`), every grain's "

@@ -5,8 +5,11 @@ of :mod:`granpack.nscd.step_policy`) and checks the equilibrium criteria (:mod:`
 every ``equilibrium.check_interval``; the phase it is in (:attr:`Settling.phase`) decides how:
 
 - ``"collapse"``: the pour and collapse, undamped, the NLGS solved to ``solver.settling_tolerance``;
-- ``"end game"``: from the first check whose kinetic criterion is below ``end_game.damping_below``,
-  with ``end_game.mode = "damping"``, every step but the checked ones scales the velocities by
+- ``"end game"``: from the first check whose kinetic criterion is below ``end_game.damping_below``
+  or whose net forces already meet their criterion (no grain accelerated: those still moving move
+  freely, as a grain spinning in place or sliding on a frictionless floor, and nothing else stops
+  them), with
+  ``end_game.mode = "damping"``, every step but the checked ones scales the velocities by
   ``exp(-damping_rate h)``: frictionless grains swinging on closed contacts dissipate nothing, and
   the damping, which vanishes at rest, changes how fast the pile reaches its static equilibrium,
   not which forces hold it there; the checks judge undamped steps;
@@ -261,7 +264,10 @@ class Settling:
         policy, m, state = self.policy, self.record.milestones, self.state
         self.report = report = check_equilibrium(state, self.contacts, self.step_h, criteria=self.criteria)
         m.passes = m.passes + 1 if report.passed and m.near_rest else 0
-        m.end_game = m.end_game or (policy.damping and report.kinetic_energy < policy.damping_below)
+        # with every net force balanced, a grain still moving moves freely (spinning in place, sliding
+        # on a frictionless floor): nothing but the damping stops it, so the end game starts then too
+        m.end_game = m.end_game or (policy.damping and (report.kinetic_energy < policy.damping_below
+                                                        or report.force_ok))
         m.near_rest = m.near_rest or report.kinetic_energy < policy.tolerance_below
         if shake_due(policy, self.record, report, state.time):
             shake(state, policy.shake_speed, np.random.default_rng([policy.seed, m.shakes]))
