@@ -163,7 +163,11 @@ def test_render_packing_draws_every_grain(tmp_path, rng):
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["spheres", "flat-elongated"]
     # the x and y axes meet at (0, 0): no 0 tick on either, so their labels do not collide there
     assert 0.0 not in ax.get_xticks() and 0.0 not in ax.get_yticks()
+    assert ax.get_title() == "18 grains, cell 3 d x 3 d"
     _check_images(save_figure(fig, tmp_path, "packing"))
+    for container, title in (("box", "18 grains, box 3 d x 3 d"), ("cylinder", "18 grains, cylinder of diameter 3 d")):
+        packing.state.box = Box.square(3.0, container)
+        assert render_packing(packing).axes[0].get_title() == title
 
 
 def test_run_figures(tmp_path, rng):

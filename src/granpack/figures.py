@@ -169,7 +169,9 @@ def render_packing(
     present = np.unique(state.population)
     handles = [Patch(color=palette(p % 10), label=packing.population_names[p]) for p in present]
     ax.legend(handles=handles, loc="upper left", title="population")
-    ax.set_title(f"{state.n} grains, cell {lx:g} d x {ly:g} d")
+    holder = {"periodic": f"cell {lx:g} d x {ly:g} d", "box": f"box {lx:g} d x {ly:g} d",
+              "cylinder": f"cylinder of diameter {lx:g} d"}[state.box.container]
+    ax.set_title(f"{state.n} grains, {holder}")
     return fig
 
 
