@@ -45,6 +45,11 @@ def _mean_std(values: list, fmt: str) -> str:
     return text + (" ± " + format(statistics.stdev(kept), fmt) if len(kept) > 1 else "")
 
 
+def _span(values: list) -> str:
+    low, high = f"{min(values):.0f}", f"{max(values):.0f}"
+    return low if low == high else f"{low}-{high}"
+
+
 def table(root: Path) -> str:
     """The markdown table of the kept runs under ``root`` (module docstring)."""
     rows: dict[str, list[dict]] = {}
@@ -57,7 +62,7 @@ def table(root: Path) -> str:
         r = rows[mu]
         col = {k: [x[k] for x in r] for k in r[0]}
         lines.append(
-            f"| {mu} | {sum(col['at_rest'])} / {len(r)} | {min(col['t']):.0f}-{max(col['t']):.0f} | "
+            f"| {mu} | {sum(col['at_rest'])} / {len(r)} | {_span(col['t'])} | "
             f"{statistics.fmean(col['cpu']):.0f} | {_mean_std(col['phi'], '.4f')} | {_mean_std(col['N'], '.2f')} | "
             f"{_mean_std(col['N_all'], '.2f')} | {_mean_std(col['rattlers'], '.1f')} % | {_mean_std(col['sliding'], '.3f')} | "
             f"{_mean_std(col['mobilisation'], '.3f')} | {_mean_std(col['hyperstaticity'], '.3f')} |")

@@ -156,12 +156,14 @@ def test_the_gradings_page_tables_every_kept_run():
         assert line in page, f"docs/gradings.md is stale: run `python benchmarks/gradings.py table` ({line[:40]})"
 
 
-def test_the_friction_page_tables_every_kept_frictional_sphere_run():
+@pytest.mark.parametrize("campaign, mus", [("friction", ["0", "0.1", "0.3", "0.5", "1"]),
+                                          ("friction-pinacoids", ["0.1", "0.3", "0.5", "1"])])
+def test_the_friction_page_tables_every_kept_frictional_run(campaign, mus):
     """docs/moulds-and-friction.md holds the rows ``python benchmarks/friction_table.py`` prints
-    from the kept frictional sphere runs, one per mu from 0 to 1."""
+    from the kept frictional runs of the spheres and of the pinacoids, one per mu."""
     friction = _script("friction_table")
-    rows = friction.table(BENCHMARKS / "validation" / "runs" / "friction").splitlines()
-    assert [r.split(" | ")[0] for r in rows[2:]] == ["| 0", "| 0.1", "| 0.3", "| 0.5", "| 1"]
+    rows = friction.table(BENCHMARKS / "validation" / "runs" / campaign).splitlines()
+    assert [r.split(" | ")[0] for r in rows[2:]] == [f"| {mu}" for mu in mus]
     page = (BENCHMARKS.parent / "docs" / "moulds-and-friction.md").read_text(encoding="utf-8")
     for line in rows:
         assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/friction_table.py ({line[:40]})"
