@@ -159,14 +159,14 @@ def test_the_gradings_page_tables_every_kept_run():
 @pytest.mark.parametrize("campaign, mus", [("friction", ["0", "0.1", "0.3", "0.5", "1"]),
                                           ("friction-pinacoids", ["0.1", "0.3", "0.5", "1"])])
 def test_the_friction_page_tables_every_kept_frictional_run(campaign, mus):
-    """docs/moulds-and-friction.md holds the rows ``python benchmarks/friction_table.py`` prints
+    """docs/moulds-and-friction.md holds the rows ``python benchmarks/moulds_tables.py friction`` prints
     from the kept frictional runs of the spheres and of the pinacoids, one per mu."""
-    friction = _script("friction_table")
-    rows = friction.table(BENCHMARKS / "validation" / "runs" / campaign).splitlines()
+    friction = _script("moulds_tables")
+    rows = friction.friction_table(BENCHMARKS / "validation" / "runs" / campaign).splitlines()
     assert [r.split(" | ")[0] for r in rows[2:]] == [f"| {mu}" for mu in mus]
     page = (BENCHMARKS.parent / "docs" / "moulds-and-friction.md").read_text(encoding="utf-8")
     for line in rows:
-        assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/friction_table.py ({line[:40]})"
+        assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/moulds_tables.py friction ({line[:40]})"
 
 
 def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sensitivity, tmp_path):
