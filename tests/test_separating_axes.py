@@ -202,3 +202,67 @@ def test_minkowski_edge_pairs_give_the_exhaustive_separation_and_manifold(pairs)
             np.testing.assert_allclose(points, points_ref, atol=1e-9)
             np.testing.assert_allclose(gaps, gaps_ref, atol=1e-9)
     assert n_over >= 40 and n_sep >= 40 and n_edge >= 5 and n_beaten >= 2
+
+
+#: two generated rocks of a 1000-rock pile at rest, d: (vertices in the body frame, centre,
+#: quaternion). B's edge lies across A's face within 5e-6 d of parallel, 5e-4 d deep: the pair has
+#: no crossing-edge manifold, so its manifold is the deepest-vertex fallback's.
+ROCK_PAIR = {
+    "a": (np.array([
+        [0.071360447686, -0.203038534875, 0.350680451941], [0.108882084081, 0.231756216916, 0.370127317519],
+        [0.336565718944, -0.369714686236, -0.005879422821], [0.324555642700, -0.349767021325, 0.049007136651],
+        [0.155781919440, 0.267889977564, 0.323144434506], [-0.015698367068, -0.182366930723, 0.361368959780],
+        [-0.113365595759, 0.139182160622, 0.389534138561], [0.136807856854, -0.371064304323, -0.133758467858],
+        [-0.339756553398, -0.221831037142, 0.037461026356], [-0.467301156573, -0.105121970688, -0.040138008015],
+        [0.319779779661, -0.227871837589, -0.097124044339], [-0.203015871629, 0.138111936474, 0.303640261305],
+        [-0.461261715972, -0.078121998452, -0.024193428781], [-0.045127529320, -0.107644909007, -0.400301678706],
+        [-0.395931973739, -0.092699712798, -0.121681459556], [0.002860856847, 0.405840824294, -0.184530411641],
+        [-0.006766162656, 0.397482133574, -0.194410395624], [0.178645361271, 0.432802571193, -0.080354356643],
+        [0.238209971203, 0.217566084633, -0.181158347497], [-0.056400943484, 0.136411248915, -0.359937617235],
+        [-0.039048116696, 0.185791350678, -0.338949668734], [-0.018314293850, -0.052450720893, -0.414332736956],
+        [0.087259268421, -0.006225268737, -0.372556146510], [0.105080062423, 0.050655191069, -0.348917348955],
+    ]), np.array([0.488275022820, 3.303715187943, 16.107595894317]), np.array([-0.288761073640, 0.268069489161, -0.855468696396, 0.336049253559])),
+    "b": (np.array([
+        [0.311346118242, 0.303565062075, 0.229700715978], [-0.100352725474, 0.361641420729, 0.127125291062],
+        [-0.440186629364, 0.232163767011, -0.048329252177], [-0.327233735783, 0.368518254515, -0.039171013948],
+        [0.367842808971, 0.202333380123, -0.163623584179], [0.262063207734, 0.187918394307, -0.318132037171],
+        [0.202590094844, -0.003701582593, 0.407996944216], [0.233590643008, -0.279769384402, -0.062036667964],
+        [0.162678090868, -0.411232835334, -0.087441619986], [-0.029904076198, 0.004109737553, 0.365978010113],
+        [-0.390400243238, -0.075139641854, 0.149249302415], [0.086467890835, -0.234827719155, 0.343532139620],
+        [0.152443963311, -0.063402521240, 0.438016043309], [-0.215280334619, 0.008831560325, -0.272097636677],
+        [0.162848442561, 0.195696262315, -0.370013395026], [0.156255011234, 0.197187615762, -0.369204424478],
+        [-0.039214475923, -0.259321701090, -0.348145948210], [-0.032478451435, 0.045671561585, -0.347182279733],
+        [0.112466534291, -0.439511183820, -0.147025741830], [-0.294310675190, -0.256711045998, 0.136207804627],
+        [-0.200346849924, -0.330519706312, 0.159697722110], [0.066145214599, -0.364715697921, -0.266742827204],
+        [-0.045928412746, -0.258707348133, -0.345364072402], [-0.040024709392, -0.261939871887, -0.347843310789],
+    ]), np.array([3.864053192797, 3.701033395510, 16.022045857057]), np.array([-0.611958897855, 0.466736764408, -0.608415673437, 0.193632302066])),
+}
+
+
+def test_an_edge_lying_in_the_other_grains_support_plane_touches_at_both_ends():
+    """The deepest-vertex manifold of two rocks whose contact is an edge lying on a face gives a
+    point at each end of the edge (each with its own depth), not only at the deeper one: the deeper
+    end turns on the last digits, and a single point jumping between the ends from step to step
+    rocked the grains of a rock pile at rest for ever (a period-4 cycle, |omega| 5e-4 to 6e-3)."""
+    from granpack.box import Box
+    from granpack.contact import detect
+    from granpack.rotations import quat_from_axis_angle, quat_multiply
+    from granpack.state import ParticleState
+
+    shapes = [ConvexPolyhedron(ROCK_PAIR[k][0]) for k in ("a", "b")]
+    x = np.array([ROCK_PAIR["a"][1], ROCK_PAIR["b"][1]])
+    ends = []
+    for angle in (0.0, 3e-5, 1e-4):  # A turned by up to 1e-4 rad: the deeper end changes
+        q = np.array([ROCK_PAIR["a"][2], ROCK_PAIR["b"][2]])
+        q[0] = quat_multiply(quat_from_axis_angle([0.3, 0.5, 0.8], angle), q[0])
+        state = ParticleState(box=Box.square(4.0), shapes=ShapeTable.from_shapes(shapes), kind=np.array([0, 1]),
+                              population=np.zeros(2, np.int64), position=x.copy(), quaternion=q)
+        c = detect(state, 0.02)
+        assert len(c.body_i) == 1 and c.n_points == 2
+        gaps = np.sort(c.gap)
+        assert -5.3e-4 < gaps[0] < gaps[1] < -4.9e-4 and gaps[1] - gaps[0] < 1e-3 * state.shapes.radius.min() * 2
+        ends.append(c.point - x[0])
+    # the two points stay at the edge's two ends (to the turn's displacement), whichever is deeper
+    for other in ends[1:]:
+        assert np.abs(np.sort(other, axis=0) - np.sort(ends[0], axis=0)).max() < 1e-4
+    assert np.linalg.norm(ends[0][0] - ends[0][1]) > 0.2  # the edge's two ends, 0.26 d apart

@@ -114,15 +114,20 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
     lies whole in A's support plane (``n . x = max_A``), resp. B's (``n . x = min_B``). Several
     edge pairs can give the same axis (parallel edges of one body, or edge directions of a face
     lying in the support plane), so the pair is not taken from the direction indices of the
-    axis: every non-parallel pair of edges lying in the two support planes is tried and the first
-    whose closest points are interior to both segments is the contact.
+    axis: every non-parallel pair of edges lying in the two support planes is tried, and each
+    pair whose closest points are interior to both segments gives a point. One pair crosses in the
+    general case; an edge lying across a face that lies in the other support plane crosses two of
+    its edges, and both crossings are points (a line contact, two points): keeping only the first
+    found let the single point jump between the two ends from one step to the next as the heights
+    changed in their last digits, and the grain rock under the jumping force.
 
     The vertex heights ``n . x`` are computed once into ``h`` from the vertex block ``X`` left by
     :func:`_sat` (A's vertices, then B's shifted by ``o``).
 
-    Returns the number of points written (1, at the midpoint of the two closest points, gap
-    ``se``, the axis separation, d; or 0 when no such pair exists, e.g. when the closest features
-    are not two crossing edges). Lengths in d; ``edges`` local vertex pairs, rows ``ea0:ea1`` of
+    Returns the number of points written (each at the midpoint of a pair's two closest points,
+    gap ``se``, the axis separation, d; points within 1e-9 d of one written are not repeated; at
+    most ``len(pts)``; 0 when no such pair exists, e.g. when the closest features are not two
+    crossing edges). Lengths in d; ``edges`` local vertex pairs, rows ``ea0:ea1`` of
     A's kind and ``eb0:eb1`` of B's.
     """
     na = a1 - a0
@@ -135,6 +140,7 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
         else:
             botb = min(botb, h[k])
     tol = 1e-9 * (1.0 + abs(topa) + abs(botb))
+    cnt = 0
     for ea in range(ea0, ea1):
         if h[edges[ea, 0]] < topa - tol or h[edges[ea, 1]] < topa - tol:
             continue
@@ -162,10 +168,18 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
                 cbx = ox + rv[q0, 0] + t * d2x
                 cby = oy + rv[q0, 1] + t * d2y
                 cbz = oz + rv[q0, 2] + t * d2z
-                pts[0, 0], pts[0, 1], pts[0, 2] = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
-                gp[0] = se
-                return 1
-    return 0
+                mx, my, mz = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
+                seen = False
+                for k in range(cnt):
+                    if abs(pts[k, 0] - mx) + abs(pts[k, 1] - my) + abs(pts[k, 2] - mz) <= 1e-9:
+                        seen = True
+                if not seen:
+                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = mx, my, mz
+                    gp[cnt] = se
+                    cnt += 1
+                    if cnt == pts.shape[0]:
+                        return cnt
+    return cnt
 
 
 @jit
@@ -294,32 +308,43 @@ def _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp):
 
 
 @jit
-def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp):
-    """Single point, gap ``sigma`` (d), midway between the support vertex of B along -n (or of A
-    along n, ``from_a``) and the other body's support plane ``sigma`` away; returns 1. Frame and
-    units as :func:`_gjk_manifold`."""
-    if from_a:
-        best = -math.inf
-        k0 = a0
-        for k in range(a0, a1):
-            h = nx * rv[k, 0] + ny * rv[k, 1] + nz * rv[k, 2]
-            if h > best:
-                best, k0 = h, k
-        pts[0, 0] = rv[k0, 0] + 0.5 * sigma * nx
-        pts[0, 1] = rv[k0, 1] + 0.5 * sigma * ny
-        pts[0, 2] = rv[k0, 2] + 0.5 * sigma * nz
-    else:
-        best = math.inf
-        k0 = b0
-        for k in range(b0, b1):
-            h = nx * (ox + rv[k, 0]) + ny * (oy + rv[k, 1]) + nz * (oz + rv[k, 2])
-            if h < best:
-                best, k0 = h, k
-        pts[0, 0] = ox + rv[k0, 0] - 0.5 * sigma * nx
-        pts[0, 1] = oy + rv[k0, 1] - 0.5 * sigma * ny
-        pts[0, 2] = oz + rv[k0, 2] - 0.5 * sigma * nz
+def _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, band, pts, gp):
+    """Points midway between the support vertices of B along -n (or of A along n, ``from_a``) and
+    the other body's support plane: the deepest vertex, gap ``sigma`` (d), then every other vertex
+    within ``band`` (d) of it, each with its own gap ``sigma`` plus its height above the deepest
+    (at most ``len(pts)``); returns their number. With ``band`` > 0 an edge or a face lying in the
+    other body's support plane gives a point at each of its ends or corners, not one of them: which
+    one is deepest turns on the last digits of the heights, and a single point jumping between them
+    from step to step rocks the grain under it for ever. Frame and units as :func:`_gjk_manifold`."""
+    sign = 1.0 if from_a else -1.0
+    lo, hi = (a0, a1) if from_a else (b0, b1)
+    sx, sy, sz = (0.0, 0.0, 0.0) if from_a else (ox, oy, oz)
+    best = -math.inf
+    k0 = lo
+    for k in range(lo, hi):
+        h = sign * (nx * (sx + rv[k, 0]) + ny * (sy + rv[k, 1]) + nz * (sz + rv[k, 2]))
+        if h > best:
+            best, k0 = h, k
+    pts[0, 0] = sx + rv[k0, 0] + sign * 0.5 * sigma * nx
+    pts[0, 1] = sy + rv[k0, 1] + sign * 0.5 * sigma * ny
+    pts[0, 2] = sz + rv[k0, 2] + sign * 0.5 * sigma * nz
     gp[0] = sigma
-    return 1
+    cnt = 1
+    if band > 0.0:
+        for k in range(lo, hi):
+            if cnt == pts.shape[0]:
+                break
+            if k == k0:
+                continue
+            below = best - sign * (nx * (sx + rv[k, 0]) + ny * (sy + rv[k, 1]) + nz * (sz + rv[k, 2]))
+            if below <= band:
+                g = sigma + below
+                pts[cnt, 0] = sx + rv[k, 0] + sign * 0.5 * g * nx
+                pts[cnt, 1] = sy + rv[k, 1] + sign * 0.5 * g * ny
+                pts[cnt, 2] = sz + rv[k, 2] + sign * 0.5 * g * nz
+                gp[cnt] = g
+                cnt += 1
+    return cnt
 
 
 @jit(inline="always")

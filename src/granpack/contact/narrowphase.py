@@ -228,7 +228,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 return cnt, nx, ny, nz
             if sigma <= 0.0 and cnt < buf.shape[0]:
                 # interpenetration whose deepest vertex lies outside the reference face: add it
-                _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B,
+                _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sk, which == _AXIS_FACE_B, 0.0,
                                pts[cnt:], gp[cnt:])
                 return cnt + 1, nx, ny, nz
             if sigma > 0.0 and cnt < pts.shape[0]:
@@ -247,16 +247,18 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                     gp[cnt] = dist
                     return cnt + 1, nx, ny, nz
         else:
-            if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
-                             edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
+            cnt = _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
+                                edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp)
+            if cnt > 0:
                 if sigma <= 0.0:
-                    _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
-                return 1, ex, ey, ez
+                    _clamp_gaps(gp, cnt, sigma)  # as for a face axis: the gap is the exact depth
+                return cnt, ex, ey, ez
     if sigma > 0.0:
         cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
         if cnt >= 0:
             return cnt, nx, ny, nz
-    # interpenetration (or touching) without an exact manifold: deepest support point, best axis
+    # interpenetration (or touching) without an exact manifold: the deepest support vertex and
+    # those within eps_f of it, along the best axis
     if se >= sface:
         nx, ny, nz = ex, ey, ez
         from_a = False
@@ -266,8 +268,7 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
     else:
         nx, ny, nz = gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2]
         from_a = True
-    _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, pts, gp)
-    return 1, nx, ny, nz
+    return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, nx, ny, nz, sigma, from_a, eps_f, pts, gp), nx, ny, nz
 
 
 @jit(inline="always")
