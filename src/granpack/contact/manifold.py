@@ -117,9 +117,7 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
     axis: every non-parallel pair of edges lying in the two support planes is tried, and each
     pair whose closest points are interior to both segments gives a point. One pair crosses in the
     general case; an edge lying across a face that lies in the other support plane crosses two of
-    its edges, and both crossings are points (a line contact, two points): keeping only the first
-    found let the single point jump between the two ends from one step to the next as the heights
-    changed in their last digits, and the grain rock under the jumping force.
+    its edges, and both crossings are points of the line contact, not only the first one found.
 
     The vertex heights ``n . x`` are computed once into ``h`` from the vertex block ``X`` left by
     :func:`_sat` (A's vertices, then B's shifted by ``o``).
