@@ -277,9 +277,11 @@ EXAMPLE_FILES = [p for p in sorted(EXAMPLES.glob("*.toml")) if "mixtures" not in
 def test_examples_load(path):
     cfg = load_config(path)
     # the study's 3000 grains; the demo's 300; the README's 1000 spheres; the graded aggregate's 5000
-    # (its coarse fractions within 0.3 %) and its coarse fraction's 1200; the cylinder's 560
+    # (its coarse fractions within 0.3 %) and its coarse fraction's 1200; the cylinder's 560; the
+    # 6700 that fill the 150 x 300 mm mould
     assert cfg.n_particles == {"demo.toml": 300, "aggregate-4-22.toml": 5000, "aggregate-8-22.toml": 1200,
-                               "spheres-1000.toml": 1000, "cylinder-spheres.toml": 560}.get(path.name, 3000)
+                               "spheres-1000.toml": 1000, "cylinder-spheres.toml": 560,
+                               "cylinder-mould-4-22.toml": 6700}.get(path.name, 3000)
     assert load_config_dict(tomllib.loads(cfg.to_toml())) == cfg
 
 
@@ -303,7 +305,7 @@ def test_example_lateral_sizes_and_families():
     assert lateral == {"demo.toml": 3.0, "aggregate-4-22.toml": 2.5, "pinacoids-bidisperse-30.toml": 3.0, "pinacoids-elongated.toml": 7.0,
                        "pinacoids-flat-elongated.toml": 4.0, "pinacoids-flat.toml": 5.5,
                        "pinacoids-isometric.toml": 8.0, "spheres-bidisperse-30.toml": 4.0, "spheres-mono.toml": 8.0, "spheres-1000.toml": 8.0,
-                       "aggregate-8-22.toml": 2.2, "cylinder-spheres.toml": 8.0}
+                       "aggregate-8-22.toml": 2.2, "cylinder-spheres.toml": 8.0, "cylinder-mould-4-22.toml": 6.696}
     aspects = {tuple(load_config(EXAMPLES / f).populations[0].aspect) for f in
                ("pinacoids-isometric.toml", "pinacoids-elongated.toml", "pinacoids-flat.toml",
                 "pinacoids-flat-elongated.toml")}
