@@ -169,6 +169,18 @@ def test_the_friction_page_tables_every_kept_frictional_run(campaign, mus):
         assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/moulds_tables.py friction ({line[:40]})"
 
 
+def test_the_moulds_page_tables_every_kept_mould_run():
+    """docs/moulds-and-friction.md holds the rows ``python benchmarks/moulds_tables.py walls`` prints
+    from the kept mould runs; Benyahia & O'Neill's fit gives 0.5892 at D/d = 8, as the page says."""
+    tables = _script("moulds_tables")
+    assert round(tables.benyahia_oneill(8.0), 4) == 0.5892
+    rows = tables.walls_table(BENCHMARKS / "validation" / "runs" / "moulds").splitlines()
+    assert len(rows) >= 5
+    page = (BENCHMARKS.parent / "docs" / "moulds-and-friction.md").read_text(encoding="utf-8")
+    for line in rows:
+        assert line in page, f"docs/moulds-and-friction.md is stale: run benchmarks/moulds_tables.py walls ({line[:40]})"
+
+
 def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sensitivity, tmp_path):
     def row(mixture, factor, phi, phi_bed=0.5):
         return {"mixture": mixture, "factor": factor, "phi": phi, "phi_bed": phi_bed, "status": "equilibrium"}
