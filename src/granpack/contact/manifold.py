@@ -114,18 +114,15 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
     lies whole in A's support plane (``n . x = max_A``), resp. B's (``n . x = min_B``). Several
     edge pairs can give the same axis (parallel edges of one body, or edge directions of a face
     lying in the support plane), so the pair is not taken from the direction indices of the
-    axis: every non-parallel pair of edges lying in the two support planes is tried, and each
-    pair whose closest points are interior to both segments gives a point. One pair crosses in the
-    general case; an edge lying across a face that lies in the other support plane crosses two of
-    its edges, and both crossings are points of the line contact, not only the first one found.
+    axis: every non-parallel pair of edges lying in the two support planes is tried and the first
+    whose closest points are interior to both segments is the contact.
 
     The vertex heights ``n . x`` are computed once into ``h`` from the vertex block ``X`` left by
     :func:`_sat` (A's vertices, then B's shifted by ``o``).
 
-    Returns the number of points written (each at the midpoint of a pair's two closest points,
-    gap ``se``, the axis separation, d; points within 1e-9 d of one written are not repeated; at
-    most ``len(pts)``; 0 when no such pair exists, e.g. when the closest features are not two
-    crossing edges). Lengths in d; ``edges`` local vertex pairs, rows ``ea0:ea1`` of
+    Returns the number of points written (1, at the midpoint of the two closest points, gap
+    ``se``, the axis separation, d; or 0 when no such pair exists, e.g. when the closest features
+    are not two crossing edges). Lengths in d; ``edges`` local vertex pairs, rows ``ea0:ea1`` of
     A's kind and ``eb0:eb1`` of B's.
     """
     na = a1 - a0
@@ -138,7 +135,6 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
         else:
             botb = min(botb, h[k])
     tol = 1e-9 * (1.0 + abs(topa) + abs(botb))
-    cnt = 0
     for ea in range(ea0, ea1):
         if h[edges[ea, 0]] < topa - tol or h[edges[ea, 1]] < topa - tol:
             continue
@@ -166,18 +162,10 @@ def _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, nx,
                 cbx = ox + rv[q0, 0] + t * d2x
                 cby = oy + rv[q0, 1] + t * d2y
                 cbz = oz + rv[q0, 2] + t * d2z
-                mx, my, mz = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
-                seen = False
-                for k in range(cnt):
-                    if abs(pts[k, 0] - mx) + abs(pts[k, 1] - my) + abs(pts[k, 2] - mz) <= 1e-9:
-                        seen = True
-                if not seen:
-                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = mx, my, mz
-                    gp[cnt] = se
-                    cnt += 1
-                    if cnt == pts.shape[0]:
-                        return cnt
-    return cnt
+                pts[0, 0], pts[0, 1], pts[0, 2] = 0.5 * (cax + cbx), 0.5 * (cay + cby), 0.5 * (caz + cbz)
+                gp[0] = se
+                return 1
+    return 0
 
 
 @jit

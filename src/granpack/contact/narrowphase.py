@@ -247,12 +247,11 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                     gp[cnt] = dist
                     return cnt + 1, nx, ny, nz
         else:
-            cnt = _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
-                                edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp)
-            if cnt > 0:
+            if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, edge_start[ka], edge_start[ka + 1], edge_start[kb],
+                             edge_start[kb + 1], edges, ex, ey, ez, se, X, h, pts, gp) == 1:
                 if sigma <= 0.0:
-                    _clamp_gaps(gp, cnt, sigma)  # as for a face axis: the gap is the exact depth
-                return cnt, ex, ey, ez
+                    _clamp_gaps(gp, 1, sigma)  # as for a face axis: the gap is the exact depth
+                return 1, ex, ey, ez
     if sigma > 0.0:
         cnt, nx, ny, nz = _gjk_manifold(rv, a0, a1, b0, b1, ox, oy, oz, alert, eps_f, scr, pts, gp)
         if cnt >= 0:
