@@ -358,7 +358,7 @@ def test_the_container_for_ovito_lies_where_the_gsd_file_puts_the_grains_and_fac
         frame = frames[0]
     origin = frame.log["granpack/origin"]
     np.testing.assert_array_equal(origin, frame_origin(packing))
-    mesh = meshio.read(write_container_stl(tmp_path / "container.stl", packing, origin))
+    mesh = meshio.read(write_container_stl(tmp_path / "container.stl", packing))
     triangles = mesh.cells_dict["triangle"]
     k = 4 if container == "box" else 96
     assert len(triangles) == 3 * k  # the floor's fan, two per wall facet

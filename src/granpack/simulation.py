@@ -45,7 +45,7 @@ from granpack.deposit import deposit
 from granpack.errors import InputError, RunInterrupted
 from granpack.io.atomic import write_text_atomic
 from granpack.io.container import write_container_stl
-from granpack.io.gsd import append_frame, frame_origin, read_packing, truncate_frames, write_packing
+from granpack.io.gsd import append_frame, read_packing, truncate_frames, write_packing
 from granpack.io.json import read_json, write_json
 from granpack.io.run_folder import (
     CHECKPOINT_FILE,
@@ -274,7 +274,7 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     final = run.packing({"status": status, "summary": _headline(summary)})
     write_packing(out_dir / FINAL_FILE, final)
     if not final.box.periodic:
-        write_container_stl(out_dir / CONTAINER_FILE, final, frame_origin(final))
+        write_container_stl(out_dir / CONTAINER_FILE, final)
     write_json(out_dir / SUMMARY_FILE, summary)
     write_text_atomic(out_dir / TIMELINE_FILE, timeline_csv(record.timeline))
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from granpack.io.atomic import atomic_path
+from granpack.io.gsd import frame_origin
 from granpack.packing import Packing
 
 __all__ = ["CYLINDER_SEGMENTS", "ContainerSurface", "container_surface", "write_container_stl"]
@@ -53,11 +54,10 @@ def container_surface(packing: Packing) -> ContainerSurface:
     Raises:
         ValueError: the packing is in a periodic cell, which has no container.
     """
-    box, state = packing.box, packing.state
+    box = packing.box
     if box.periodic:
         raise ValueError("a periodic cell has no container surface")
-    top = float(np.max(state.position[:, 2] + state.radius)) if state.n else 0.0
-    height = max(top, 0.0) + 1.0
+    height = 2.0 * frame_origin(packing)[2]  # the GSD box's height
     if box.container == "cylinder":
         angle = 2.0 * np.pi * np.arange(CYLINDER_SEGMENTS) / CYLINDER_SEGMENTS
         ring = np.column_stack([0.5 * box.lx * (1.0 + np.cos(angle)), 0.5 * box.ly + 0.5 * box.lx * np.sin(angle)])
@@ -75,9 +75,9 @@ def container_surface(packing: Packing) -> ContainerSurface:
     return ContainerSurface(points, floor, walls, wall)
 
 
-def write_container_stl(path: str | os.PathLike, packing: Packing, origin: np.ndarray) -> Path:
-    """Write the container's inside surface as a binary STL, shifted by ``-origin`` (d) into the
-    frame of the GSD file it goes with (:func:`granpack.io.gsd.frame_origin`), atomically.
+def write_container_stl(path: str | os.PathLike, packing: Packing) -> Path:
+    """Write the container's inside surface as a binary STL in the frame of ``packing``'s GSD file
+    (shifted by :func:`granpack.io.gsd.frame_origin`), atomically.
 
     Returns:
         The path written.
@@ -85,7 +85,7 @@ def write_container_stl(path: str | os.PathLike, packing: Packing, origin: np.nd
     import meshio
 
     surface = container_surface(packing)
-    mesh = meshio.Mesh(surface.points - np.asarray(origin, dtype=float), [("triangle", surface.as_triangles())])
+    mesh = meshio.Mesh(surface.points - frame_origin(packing), [("triangle", surface.as_triangles())])
     path = Path(path)
     with atomic_path(path) as tmp:
         meshio.write(tmp, mesh, file_format="stl", binary=True)
