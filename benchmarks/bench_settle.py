@@ -107,6 +107,17 @@ def _value(text: str):
         return text
 
 
+def apply_sets(raw: dict, overrides: list[str]) -> dict:
+    """``raw`` (a config's TOML tables as a dict) with each ``SECTION.KEY=VALUE`` (or ``KEY=VALUE``
+    for a top-level key) of ``overrides`` set, the value read as JSON where it parses (numbers,
+    booleans, lists), else as a string."""
+    for item in overrides:
+        key, value = item.split("=", 1)
+        *section, field = key.split(".")
+        (raw.setdefault(section[0], {}) if section else raw)[field] = _value(value)
+    return raw
+
+
 def _timeline(path: Path) -> list[dict]:
     with path.open(newline="") as f:
         return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
@@ -130,10 +141,7 @@ def run_case(name: str, out: Path, max_time: float, seed: int | None, overrides:
     raw.setdefault("equilibrium", {})["max_time"] = max_time
     if seed is not None:
         raw["seed"] = seed
-    for item in overrides:
-        key, value = item.split("=", 1)
-        section, field = key.split(".")
-        raw.setdefault(section, {})[field] = _value(value)
+    apply_sets(raw, overrides)
     config = load_config_dict(raw, source=name, base_dir=_scan_files(raw, out))
     run_dir = out / f"{name}-seed{config.seed}"
     t0, c0 = time.perf_counter(), time.process_time()

@@ -8,6 +8,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
@@ -423,3 +424,30 @@ def test_the_tree_holds_no_final_state_and_the_manifest_names_kept_runs(final_st
     for run, row in manifest.items():
         assert (root / run / "task.json").is_file() or (root / run / "config.toml").is_file(), run
         assert len(row["blob"]) == 40 and int(row["bytes"]) > 0
+
+
+@pytest.fixture(scope="module")
+def continue_run():
+    return _script("continue_run")
+
+
+def test_a_continuation_settles_the_final_state_on_under_the_changed_settings(continue_run, tmp_path):
+    from granpack.config import load_config, load_config_dict
+    from granpack.io.gsd import read_packing
+    from granpack.simulation import run_packing
+
+    config = load_config_dict({"seed": 4, "n_particles": 20, "lateral_size": 2.5,
+                               "populations": [{"shape": "sphere", "size": 1.0, "volume_fraction": 1.0}],
+                               "equilibrium": {"max_time": 2.0}})
+    run_packing(config, tmp_path / "run", progress=False)
+    start = read_packing(tmp_path / "run" / "final.gsd").state
+    summary = continue_run.continue_run(tmp_path / "run", tmp_path / "on", 3.0, ["container.wall_friction=0.5"])
+    assert load_config(tmp_path / "on" / "config.toml").container.wall_friction == 0.5
+    assert load_config(tmp_path / "on" / "config.toml").equilibrium.max_time == 3.0
+    end = read_packing(tmp_path / "on" / "final.gsd").state
+    assert 2.0 < end.time <= 3.0 + 1e-9 and summary["simulated_time"] == pytest.approx(end.time)
+    assert not np.array_equal(end.position, start.position)  # the grains moved on from where the run left them
+    rows = (tmp_path / "on" / "timeline.csv").read_text().splitlines()[1:]
+    assert float(rows[0].split(",")[0]) > 2.0
+    with pytest.raises(SystemExit, match="not beyond"):
+        continue_run.continue_run(tmp_path / "run", tmp_path / "back", 2.0, [])
