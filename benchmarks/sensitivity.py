@@ -441,12 +441,12 @@ def _save(fig, path: Path) -> Path:
 def figure_cells(table: list[dict]) -> dict[str, dict[str, tuple[float, float, int]]]:
     """What :func:`figure` draws: mixture -> factor -> (mean phi, std or 0, runs) over the cell's
     finished runs (as the table counts them), for the mixtures of :data:`STUDY_PHI` that some factor varies. A bed
-    without a bulk region (``cell-study``) counts by its ``phi_bed``."""
+    without a bulk region (``cell-study``, ``study-protocol``: no bulk ``phi``) counts by its ``phi_bed``."""
     cells: dict[str, dict[str, list[float]]] = {}
     for row in table:
         if row["mixture"] not in STUDY_PHI or row["factor"].startswith("screen-"):
             continue
-        value = row["phi_bed"] if row["factor"] == "cell-study" else row["phi"]
+        value = row["phi_bed"] if row["factor"] == "cell-study" or row["phi"] is None else row["phi"]
         cells.setdefault(row["mixture"], {}).setdefault(row["factor"], []).append(value)
     varied = {m: c for m, c in cells.items() if set(c) - {"default"}}
     return {m: {f: (statistics.fmean(v), statistics.stdev(v) if len(v) > 1 else 0.0, len(v)) for f, v in c.items()}

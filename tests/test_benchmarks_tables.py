@@ -189,6 +189,7 @@ def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sen
     table = [row("pinacoids-small-0", "default", 0.666), row("pinacoids-small-0", "default", 0.668),
              row("pinacoids-small-0", "regime-lmgc", 0.669),
              row("flat-100", "default", 0.645), row("flat-100", "cell-study", 0.9, phi_bed=0.651),
+             row("flat-100", "study-protocol", None, phi_bed=0.655),
              row("elongated-100", "default", 0.654),  # no factor yet: not drawn
              row("elongated-36", "regime-lmgc", 0.66)]  # no study figure: not drawn
     cells = sensitivity.figure_cells(table)
@@ -197,6 +198,7 @@ def test_the_sensitivity_figure_draws_each_varied_mixture_beside_its_default(sen
     assert (mean, runs) == (pytest.approx(0.667), 2) and std == pytest.approx(math.sqrt(2e-6))
     assert cells["pinacoids-small-0"]["regime-lmgc"] == (0.669, 0.0, 1)
     assert cells["flat-100"]["cell-study"][0] == 0.651  # a thin bed counts by its bed figure
+    assert cells["flat-100"]["study-protocol"][0] == 0.655  # so does any run without a bulk figure
     path = sensitivity.figure(table, tmp_path / "f.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
