@@ -22,11 +22,14 @@ where ``pip install --no-deps compas-lmgc90 numpy`` put it):
 
 - ``export CONFIG OUT``: granpack's initial state of CONFIG (its deposit, before gravity acts),
   written to ``OUT/initial.npz``;
-- ``lmgc OUT [--max-time T] [--steps N]``: LMGC90 from ``OUT/initial.npz``; a line of
+- ``lmgc OUT [--max-time T] [--steps N] [--resume]``: LMGC90 from ``OUT/initial.npz``; a line of
   ``OUT/lmgc.log`` and a row of ``OUT/lmgc_timeline.csv`` every check (0.25 sqrt(d/g)), the latest
   state as a granpack run folder ``OUT/lmgc/final.gsd`` (analyse it with ``granpack analyze``);
   stops when granpack's criteria, or else the study's, have held for five checks in a row, or at
-  ``--max-time``;
+  ``--max-time``. Every check also writes ``OUT/lmgc_state.npz`` (positions, orientations and
+  LMGC90's own velocities at the end of the step, with the counters), from which ``--resume``
+  goes on: the bodies are set up again where they were, with their velocities; only the
+  reactions that warm-start the first step's NLGS are lost;
 - ``pairs OUT``: how LMGC90's interactions group by pair in the latest state a run saved
   (``OUT/lmgc_interactions.npz``, LMGC90's interactions as they are, written with
   ``final.gsd``): one JSON object, for every pair of bodies the points found with each body as
@@ -421,7 +424,54 @@ def _velocities(x0, r0, x1, r1, L, dt_gp):
     return v, omega
 
 
-def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
+def body_velocities(sim: "Lmgc", name: str = "Vbeg_") -> np.ndarray:
+    """LMGC90's velocity vector ``name`` of every grain, (n, 6): translation in the world frame
+    (m/s), rotation in the body's inertia frame (rad/s), as ``RBDY3`` holds them."""
+    get = F(sim.so, "rbdy3_MOD_get_vector_rbdy3")
+    out, six = (ctypes.c_double * 6)(), ctypes.c_int(6)
+    rows = []
+    for b in range(sim.n):
+        get(ctypes.c_char_p(name.encode()), ctypes.byref(ctypes.c_int(b + 1)), out, ctypes.byref(six),
+            ctypes.c_size_t(5))
+        rows.append(out[:])
+    return np.array(rows)
+
+
+def put_body_velocities(sim: "Lmgc", velocity: np.ndarray) -> None:
+    """Set every grain's velocity at the beginning of the next step (``Vbeg_`` and ``V____``) to
+    ``velocity``, (n, 6), in ``body_velocities``' convention."""
+    put, six = F(sim.so, "rbdy3_MOD_put_vector_rbdy3"), ctypes.c_int(6)
+    for b in range(sim.n):
+        row = (ctypes.c_double * 6)(*velocity[b])
+        for name in ("Vbeg_", "V____"):
+            put(ctypes.c_char_p(name.encode()), ctypes.byref(ctypes.c_int(b + 1)), row, ctypes.byref(six),
+                ctypes.c_size_t(5))
+
+
+def _resume_state(out: Path, init: dict) -> tuple[dict, dict]:
+    """The set-up of a run resumed from ``OUT/lmgc_state.npz``: ``init`` with the saved positions
+    and orientations, and the saved counters and velocities (rotation in world axes)."""
+    saved = dict(np.load(out / "lmgc_state.npz", allow_pickle=False))
+    resumed = dict(init)
+    resumed["position"] = saved["position"]
+    resumed["quaternion"] = saved["quaternion"]
+    frame = saved["frame"]  # rows: the inertia axes in world coordinates
+    velocity = saved["velocity"].copy()
+    velocity[:, 3:] = np.einsum("nji,nj->ni", frame, velocity[:, 3:])
+    counters = json.loads(str(saved["counters"]))
+    counters["world_velocity"] = velocity
+    return resumed, counters
+
+
+def _save_state(out: Path, sim: "Lmgc", position, rotation, counters: dict) -> None:
+    """``OUT/lmgc_state.npz``, written beside and then moved over the last (never half-written)."""
+    tmp = out / "lmgc_state.tmp.npz"
+    np.savez(tmp, position=position, quaternion=matrix_to_quat(rotation), frame=sim.frames()[1],
+             velocity=body_velocities(sim), counters=json.dumps(counters))
+    os.replace(tmp, out / "lmgc_state.npz")
+
+
+def run_lmgc(out: Path, max_time: float, steps: int | None, resume: bool = False) -> dict:
     from granpack.equilibrium import EquilibriumCriteria, check_equilibrium
     from granpack.io.gsd import write_packing
     from granpack.packing import Packing
@@ -429,20 +479,40 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
     init = dict(np.load(out / "initial.npz"))
     log = open(out / "lmgc.log", "a", buffering=1)
     cpu0, wall0 = time.process_time(), time.perf_counter()
-    sim = Lmgc(init)
-    setup_cpu = time.process_time() - cpu0
+    counters = {"step": 0, "cpu_s": 0.0, "wall_s": 0.0, "sweeps": 0, "setup_cpu_s": 0.0,
+                "in_row": {"granpack": 0, "study": 0}, "rest": {"granpack": None, "study": None}}
+    if resume:
+        start, counters = _resume_state(out, init)
+        sim = Lmgc(start)
+        # back from world axes into the new set-up's inertia frames
+        velocity = counters.pop("world_velocity")
+        velocity[:, 3:] = np.einsum("nij,nj->ni", sim.frame0, velocity[:, 3:])
+        put_body_velocities(sim, velocity)
+        sim.step_count, sim.sweeps = counters["step"], counters["sweeps"]
+        init_for_state = start
+    else:
+        sim = Lmgc(init)
+        init_for_state = init
+    # CPU and wall time carry on from the saved run
+    cpu0 -= counters["cpu_s"]
+    wall0 -= counters["wall_s"]
+    setup_cpu = time.process_time() - cpu0 - counters["cpu_s"]
+    if not resume:
+        counters["setup_cpu_s"] = setup_cpu
     n, L = sim.n, sim.L
     log.write(f"# LMGC90 (compas-lmgc90 wheel) {n} grains, L = {L} d, h = {H} sqrt(d/g), theta {THETA}, "
               f"NLGS {NLGS_NORM.strip()} {NLGS_TOL} relax {NLGS_RELAX}, Cundall common plane, alert {ALERT} d; "
-              f"set-up {setup_cpu:.1f} CPU s\n")
+              f"set-up {setup_cpu:.1f} CPU s" + (f"; resumed at t = {sim.step_count * H:.2f}" if resume else "") + "\n")
     crit_gp, crit_study = EquilibriumCriteria(), EquilibriumCriteria(**STUDY_CRITERIA)
-    timeline = open(out / "lmgc_timeline.csv", "w", newline="")
     cols = ["step", "time", "cpu_s", "wall_s", "sweeps_mean", "sweeps_last", "contacts", "max_overlap",
             "max_net_force", "max_net_torque", "kinetic_energy", "wall_force_over_weight", "gp_ok", "study_ok"]
+    if resume:
+        _truncate_timeline(out / "lmgc_timeline.csv", sim.step_count)
+    timeline = open(out / "lmgc_timeline.csv", "a" if resume else "w", newline="")
     writer = csv.writer(timeline)
-    writer.writerow(cols)
-    in_row = {"granpack": 0, "study": 0}
-    rest = {"granpack": None, "study": None}
+    if not resume:
+        writer.writerow(cols)
+    in_row, rest = counters["in_row"], counters["rest"]
     max_steps = steps if steps is not None else int(round(max_time / H))
     status = "not at rest"
     sweeps_since = 0
@@ -458,7 +528,7 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
         r0, r1 = sim.rotations(f0), sim.rotations(f1)
         v, omega = _velocities(x0, r0, x1, r1, L, H)
         t = sim.step_count * H
-        state, config = granpack_state(init, x1, matrix_to_quat(r1), v, omega, t)
+        state, config = granpack_state(init_for_state, x1, matrix_to_quat(r1), v, omega, t)
         raw = raw_interactions(sim)
         cs = contact_set(raw, n, x1, L)
         rep_gp = check_equilibrium(state, cs, H, criteria=crit_gp)
@@ -476,6 +546,8 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
         writer.writerow(row)
         timeline.flush()
         sweeps_since = 0
+        counters.update(step=sim.step_count, cpu_s=cpu, wall_s=time.perf_counter() - wall0, sweeps=sim.sweeps)
+        _save_state(out, sim, x1, r1, counters)
         log.write(f"t={t:.2f} step={sim.step_count} cpu={cpu:.0f}s cpu/step={cpu / sim.step_count:.3f}s "
                   f"sweeps/step={row[4]} contacts={cs.n_manifolds} overlap={overlap:.2e} "
                   f"F={rep_gp.max_net_force:.2e} T={rep_gp.max_net_torque:.2e} E={rep_gp.kinetic_energy:.2e} "
@@ -493,13 +565,21 @@ def run_lmgc(out: Path, max_time: float, steps: int | None) -> dict:
             write_packing(out / "lmgc" / "final.gsd", packing)
             np.savez(out / "lmgc_interactions.npz", position=x1, n=n, lateral_size=L, time=t, **raw)
             (out / "lmgc_summary.json").write_text(json.dumps(
-                {"status": status, "steps": sim.step_count, "time": t, "cpu_s": cpu, "setup_cpu_s": setup_cpu,
+                {"status": status, "steps": sim.step_count, "time": t, "cpu_s": cpu,
+                 "setup_cpu_s": counters["setup_cpu_s"],
                  "cpu_per_step_s": cpu / sim.step_count, "nlgs_sweeps_per_step": sim.sweeps / sim.step_count,
                  "rest": rest, "final": dict(zip(cols, row))}, indent=1))
         if rest["granpack"] is not None or (rest["study"] is not None and steps is None):
             break  # at rest by granpack's criteria, or by the study's (five checks in a row)
     log.write(f"# end: {status} at t = {sim.step_count * H:.2f}, {time.process_time() - cpu0:.0f} CPU s\n")
     return json.loads((out / "lmgc_summary.json").read_text())
+
+
+def _truncate_timeline(path: Path, step: int) -> None:
+    """Drop the rows of ``path`` after ``step`` (written after the state a run resumes from)."""
+    lines = path.read_text().splitlines(keepends=True)
+    kept = [lines[0]] + [ln for ln in lines[1:] if int(ln.split(",", 1)[0]) <= step]
+    path.write_text("".join(kept))
 
 
 # ---------------------------------------------------------------- interactions by pair
@@ -652,6 +732,7 @@ def main(argv=None) -> int:
     r.add_argument("out", type=Path)
     r.add_argument("--max-time", type=float, default=300.0)
     r.add_argument("--steps", type=int, default=None)
+    r.add_argument("--resume", action="store_true", help="go on from OUT/lmgc_state.npz")
     q = sub.add_parser("pairs")
     q.add_argument("out", type=Path)
     p = sub.add_parser("report")
@@ -661,7 +742,7 @@ def main(argv=None) -> int:
     if a.cmd == "export":
         res = export(a.config, a.out)
     elif a.cmd == "lmgc":
-        res = run_lmgc(a.out, a.max_time, a.steps)
+        res = run_lmgc(a.out, a.max_time, a.steps, a.resume)
     elif a.cmd == "pairs":
         res = pairs(a.out)
     else:
