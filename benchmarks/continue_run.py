@@ -10,7 +10,7 @@ with; this continues ``RUN_DIR/final.gsd`` (a run that ended at rest or at its c
 ``end_game.mode=none``, ...) up to ``equilibrium.max_time = T``. The settling starts in the
 phase the run ended in: the end game's damping on (where the config has it) and the fine NLGS
 tolerance in use, the equilibrium window empty. The continuation is a run folder of its own
-(``OUT_DIR``: config, final.gsd, summary.json, timeline.csv), which ``granpack analyze`` reads;
+(``OUT_DIR``: config, final.gsd, summary.json, timeline.csv, and a mould's container.stl), which ``granpack analyze`` reads;
 it prints one line per equilibrium check every ``--every`` sqrt(d/g) and the summary's JSON
 headline at the end.
 
@@ -27,16 +27,13 @@ import sys
 import tomllib
 from pathlib import Path
 
-from granpack.box import Box
 from granpack.config import load_config_dict
-from granpack.io.gsd import read_packing, write_packing
-from granpack.io.json import write_json
-from granpack.io.run_folder import CONFIG_FILE, FINAL_FILE, SUMMARY_FILE, TIMELINE_FILE
+from granpack.io.gsd import read_packing
+from granpack.io.run_folder import CONFIG_FILE, FINAL_FILE
 from granpack.mixture import Mixture
-from granpack.run_record import RunRecord, timeline_csv
+from granpack.run_record import RunRecord
 from granpack.settling import Settling
-from granpack.simulation import _headline, _summary
-from granpack.state import ParticleState
+from granpack.simulation import headline, saved_state, write_run
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_settle import apply_sets  # noqa: E402
@@ -68,27 +65,18 @@ def continue_run(run_dir: Path, out_dir: Path, max_time: float, overrides: list[
                               source=str(run_dir / CONFIG_FILE), base_dir=run_dir)
     mixture = Mixture.from_config(config)
     final = read_packing(run_dir / FINAL_FILE)
-    saved = final.state
-    if not max_time > saved.time + 0.5 * config.time_stepping.time_step:
-        raise SystemExit(f"--max-time {max_time:g} is not beyond the run's end at t = {saved.time:.6g}")
-    state = ParticleState(box=Box.square(config.lateral_size, config.container.shape),
-                          shapes=mixture.particle_shape_table(), kind=saved.kind, population=saved.population,
-                          position=saved.position, quaternion=saved.quaternion, velocity=saved.velocity,
-                          omega=saved.omega, time=saved.time)
+    if not max_time > final.state.time + 0.5 * config.time_stepping.time_step:
+        raise SystemExit(f"--max-time {max_time:g} is not beyond the run's end at t = {final.state.time:.6g}")
+    state = saved_state(final.state, config, mixture)
     record = RunRecord()
     m = record.milestones
-    m.step = int(round(saved.time / config.time_stepping.time_step))
+    m.step = int(round(state.time / config.time_stepping.time_step))
     m.end_game, m.near_rest, m.last_step = True, True, config.time_stepping.time_step
     run = Settling(config, mixture, state, final.contacts, record)
     status = run.run((_Lines(every),))
-    record.clock.stamp()
-    summary = _summary(config, run, status)
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / CONFIG_FILE).write_text(config.to_toml())
-    write_packing(out_dir / FINAL_FILE, run.packing({"status": status, "summary": _headline(summary)}))
-    write_json(out_dir / SUMMARY_FILE, summary)
-    (out_dir / TIMELINE_FILE).write_text(timeline_csv(record.timeline))
-    return summary
+    return write_run(out_dir, config, run, status)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -100,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every", type=float, default=1.0, help="sqrt(d/g) between printed lines")
     args = parser.parse_args(argv)
     summary = continue_run(args.run_dir, args.out_dir, args.max_time, args.set, args.every)
-    json.dump(_headline(summary), sys.stdout, indent=1)
+    json.dump(headline(summary), sys.stdout, indent=1)
     print()
     return 0
 

@@ -123,6 +123,17 @@ def _same_config(saved_text: str | None, config: RunConfig) -> bool:
         return False
 
 
+def saved_state(saved: ParticleState, config: RunConfig, mixture: Mixture) -> ParticleState:
+    """A state read from a GSD file (``read_packing(path).state``) set up to settle on under
+    ``config``: its grains (kinds, populations, positions, orientations, velocities, time) in the
+    container of ``config`` with ``mixture``'s shape table, which the kernels index (the file's
+    own shapes are for viewers)."""
+    return ParticleState(box=Box.square(config.lateral_size, config.container.shape),
+                         shapes=mixture.particle_shape_table(), kind=saved.kind, population=saved.population,
+                         position=saved.position, quaternion=saved.quaternion, velocity=saved.velocity,
+                         omega=saved.omega, time=saved.time)
+
+
 def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture,
                  source: str | None = None) -> tuple[ParticleState, ContactSet, RunRecord] | None:
     """State, warm contacts and record of the checkpoint in ``out_dir``, or None if there is none;
@@ -146,11 +157,7 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture,
                                          source or "the config given")
         raise InputError(f"{path}: made with other settings than the config given: {differences}; resume with "
                          f"{out_dir / CONFIG_FILE} (or those settings), or replace the run with --overwrite")
-    s = saved.state
-    state = ParticleState(box=Box.square(config.lateral_size, config.container.shape),
-                          shapes=mixture.particle_shape_table(), kind=s.kind,
-                          population=s.population, position=s.position, quaternion=s.quaternion,
-                          velocity=s.velocity, omega=s.omega, time=s.time)
+    state = saved_state(saved.state, config, mixture)
     try:
         record = RunRecord.from_dict(meta["counters"])
     except (KeyError, TypeError) as exc:
@@ -269,21 +276,31 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
                                run.steps_of(output.snapshot_interval) if output.snapshot_interval > 0 else 0)
     with bar, interrupt:
         status = run.run((bar, checkpoints))
-    record.clock.stamp()
-    summary = _summary(config, run, status)
-    final = run.packing({"status": status, "summary": _headline(summary)})
-    write_packing(out_dir / FINAL_FILE, final)
-    if not final.box.periodic:
-        write_container_stl(out_dir / CONTAINER_FILE, final)
-    write_json(out_dir / SUMMARY_FILE, summary)
-    write_text_atomic(out_dir / TIMELINE_FILE, timeline_csv(record.timeline))
+    summary = write_run(out_dir, config, run, status)
     (out_dir / CHECKPOINT_FILE).unlink(missing_ok=True)
     note(f"{status} at t = {state.time:.6g} sqrt(d/g) after {record.clock.wall_seconds:.0f} s: "
          f"largest net force {run.report.max_net_force:.3g} d^2 P", lines_only=True)
     return summary
 
 
-def _headline(summary: dict) -> dict:
+def write_run(out_dir: Path, config: RunConfig, run: Settling, status: str) -> dict:
+    """Write a settled run's files into ``out_dir``: ``final.gsd`` (with the status and the
+    summary's headline), the container's STL for a mould, ``summary.json`` and ``timeline.csv``;
+    returns the summary, whose wall and CPU times (the clock is stamped first) end where the writing starts."""
+    run.record.clock.stamp()
+    summary = _summary(config, run, status)
+    final = run.packing({"status": status, "summary": headline(summary)})
+    write_packing(out_dir / FINAL_FILE, final)
+    if not final.box.periodic:
+        write_container_stl(out_dir / CONTAINER_FILE, final)
+    write_json(out_dir / SUMMARY_FILE, summary)
+    write_text_atomic(out_dir / TIMELINE_FILE, timeline_csv(run.record.timeline))
+    return summary
+
+
+def headline(summary: dict) -> dict:
+    """The four fields of a run's summary that say how it ended: status, steps, simulated and
+    wall time."""
     return {k: summary[k] for k in ("status", "steps", "simulated_time", "wall_time")}
 
 
