@@ -36,7 +36,8 @@ where ``pip install --no-deps compas-lmgc90 numpy`` put it):
   candidate against the type granpack gives the merged manifold, and the contacts per grain
   counted per manifold, per pair and per (candidate, antagonist) call;
 - ``report OUT GRANPACK_RUN``: analyses both piles (``analysis.json`` in each folder) and prints
-  one JSON object: solid fraction, k, contact types, CPU time to rest, per step.
+  one JSON object: solid fraction, k, contact types (over the bulk, and over the whole column for
+  piles too thin for a bulk), CPU time to rest, per step.
 
 The floor is 3 x 3 fixed box tiles (see ``Lmgc``), not one slab, and the common-plane search is
 freed from the wheel's face-to-face flag (``_clear_f2f``): the two things without which LMGC90
@@ -689,20 +690,35 @@ def _study_rest(timeline: Path) -> dict | None:
     return None
 
 
+def column_types(run_dir: Path) -> dict:
+    """Contact types of the whole column of ``run_dir/final.gsd`` (every grain analysed, the floor
+    a boundary), by granpack's rules: the figures two piles too thin for a bulk region can be
+    compared by. ``{"all": {N, Ns, Nd, Nt, Nc, rattler_fraction}, population name: {...}}``."""
+    from granpack.analysis.coordination import Coordination
+    from granpack.io.gsd import read_packing
+
+    packing = read_packing(run_dir / "final.gsd")
+    co = Coordination(z_range=(-math.inf, math.inf)).compute(packing)
+    result = {"all": co.figures | {"rattler_fraction": co.rattler_fraction}}
+    for index, name in enumerate(packing.population_names):
+        result[name] = co.figures_of(packing.state.population == index)
+    return result
+
+
 def report(out: Path, gp_run: Path) -> dict:
     from granpack.analysis.report import analyze_run
 
     result = {}
     lm_summary = json.loads((out / "lmgc_summary.json").read_text())
     lm = analyze_run(out / "lmgc")
-    result["lmgc90"] = _figures(out / "lmgc", lm, lm_summary) | {
+    result["lmgc90"] = _figures(out / "lmgc", lm, lm_summary) | {"column_types": column_types(out / "lmgc")} | {
         "cpu_s": lm_summary["cpu_s"], "steps": lm_summary["steps"], "cpu_per_step_s": lm_summary["cpu_per_step_s"],
         "nlgs_sweeps_per_step": lm_summary["nlgs_sweeps_per_step"], "rest": lm_summary["rest"]}
     if (gp_run / "summary.json").is_file():
         gp_summary = json.loads((gp_run / "summary.json").read_text())
         gp = analyze_run(gp_run)
         steps = gp_summary.get("steps") or 0
-        result["granpack"] = _figures(gp_run, gp, gp_summary) | {
+        result["granpack"] = _figures(gp_run, gp, gp_summary) | {"column_types": column_types(gp_run)} | {
             "time": gp_summary.get("simulated_time"), "steps": steps, "cpu_s": gp_summary.get("cpu_time"),
             "cpu_per_step_s": gp_summary["cpu_time"] / steps if steps else None,
             "nlgs": gp_summary.get("nlgs"), "rest_study_criteria": _study_rest(gp_run / "timeline.csv")}
