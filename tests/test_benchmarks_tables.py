@@ -453,3 +453,44 @@ def test_a_continuation_settles_the_final_state_on_under_the_changed_settings(co
     assert float(rows[0].split(",")[0]) > 2.0
     with pytest.raises(SystemExit, match="not beyond"):
         continue_run.continue_run(tmp_path / "run", tmp_path / "back", 2.0, [])
+
+
+@pytest.fixture(scope="module")
+def side_by_side():
+    import sys
+
+    sys.path.insert(0, str(BENCHMARKS / "lmgc90"))
+    try:
+        return _script("lmgc90/side_by_side")
+    finally:
+        sys.path.remove(str(BENCHMARKS / "lmgc90"))
+
+
+def test_column_types_count_every_grain_of_a_pile_too_thin_for_a_bulk(side_by_side, tmp_path):
+    from packing_builders import cubic_cubes
+
+    from granpack.io.gsd import write_packing
+
+    packing, _ = cubic_cubes(3, 3)  # three layers of face-to-face cubes: no bulk region
+    write_packing(tmp_path / "final.gsd", packing)
+    types = side_by_side.column_types(tmp_path)
+    # bottom and middle layers: 4 side faces + 2 (floor or cube); top layer: 4 + 1
+    assert types["all"]["N"] == pytest.approx(17 / 3) and types["all"]["Nt"] == pytest.approx(17 / 3)
+    assert types["all"]["Ns"] == 0.0 and types["all"]["Nd"] == 0.0 and types["all"]["Nc"] == pytest.approx(17.0)
+    assert types["cubes"]["n_analysed"] == 27 and types["all"]["rattler_fraction"] == 0.0
+
+
+def test_a_resumed_lmgc90_run_keeps_its_timeline_to_the_saved_step_and_turns_its_spin_into_world_axes(
+        side_by_side, tmp_path):
+    timeline = tmp_path / "lmgc_timeline.csv"
+    timeline.write_text("step,time\n50,0.25\n100,0.5\n150,0.75\n")
+    side_by_side._truncate_timeline(timeline, 100)
+    assert timeline.read_text() == "step,time\n50,0.25\n100,0.5\n"
+    # a body whose inertia axes (rows of the frame) are the world's y, z, x, spinning about its own x
+    frame = np.array([[[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]])
+    velocity = np.array([[0.1, 0.2, 0.3, 2.0, 0.0, 0.0]])
+    np.savez(tmp_path / "lmgc_state.npz", position=np.zeros((1, 3)), quaternion=np.array([[1.0, 0.0, 0.0, 0.0]]),
+             frame=frame, velocity=velocity, counters=json.dumps({"step": 100}))
+    start, counters = side_by_side._resume_state(tmp_path, {"position": np.ones((1, 3)), "kind": np.zeros(1)})
+    np.testing.assert_array_equal(counters["world_velocity"], [[0.1, 0.2, 0.3, 0.0, 2.0, 0.0]])
+    assert counters["step"] == 100 and np.array_equal(start["position"], np.zeros((1, 3)))
