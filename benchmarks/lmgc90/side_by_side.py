@@ -464,10 +464,10 @@ def _resume_state(out: Path, init: dict) -> tuple[dict, dict]:
     return resumed, counters
 
 
-def _save_state(out: Path, sim: "Lmgc", position, rotation, counters: dict) -> None:
+def _save_state(out: Path, sim: "Lmgc", position, rotation, frame, counters: dict) -> None:
     """``OUT/lmgc_state.npz``, written beside and then moved over the last (never half-written)."""
     tmp = out / "lmgc_state.tmp.npz"
-    np.savez(tmp, position=position, quaternion=matrix_to_quat(rotation), frame=sim.frames()[1],
+    np.savez(tmp, position=position, quaternion=matrix_to_quat(rotation), frame=frame,
              velocity=body_velocities(sim), counters=json.dumps(counters))
     os.replace(tmp, out / "lmgc_state.npz")
 
@@ -494,10 +494,10 @@ def run_lmgc(out: Path, max_time: float, steps: int | None, resume: bool = False
     else:
         sim = Lmgc(init)
         init_for_state = init
+    setup_cpu = time.process_time() - cpu0
     # CPU and wall time carry on from the saved run
     cpu0 -= counters["cpu_s"]
     wall0 -= counters["wall_s"]
-    setup_cpu = time.process_time() - cpu0 - counters["cpu_s"]
     if not resume:
         counters["setup_cpu_s"] = setup_cpu
     n, L = sim.n, sim.L
@@ -548,7 +548,7 @@ def run_lmgc(out: Path, max_time: float, steps: int | None, resume: bool = False
         timeline.flush()
         sweeps_since = 0
         counters.update(step=sim.step_count, cpu_s=cpu, wall_s=time.perf_counter() - wall0, sweeps=sim.sweeps)
-        _save_state(out, sim, x1, r1, counters)
+        _save_state(out, sim, x1, r1, f1, counters)
         log.write(f"t={t:.2f} step={sim.step_count} cpu={cpu:.0f}s cpu/step={cpu / sim.step_count:.3f}s "
                   f"sweeps/step={row[4]} contacts={cs.n_manifolds} overlap={overlap:.2e} "
                   f"F={rep_gp.max_net_force:.2e} T={rep_gp.max_net_torque:.2e} E={rep_gp.kinetic_energy:.2e} "
