@@ -18,12 +18,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
 
 from granpack.box import Box
 from granpack.contact import DOUBLE, SIMPLE, TRIPLE, ContactSet, Detector, contact_types, detect
 from granpack.contact.broadphase import candidate_pairs
 from granpack.rotations import quat_from_axis_angle, quat_multiply, quat_to_matrix, random_quaternions
-from granpack.shapes import Pinacoid, ShapeTable, Sphere, platonic
+from granpack.shapes import ConvexPolyhedron, Pinacoid, ShapeTable, Sphere, platonic
 from granpack.state import ParticleState
 
 ALERT = 0.02
@@ -310,6 +311,39 @@ def test_edge_on_face_is_double_with_edge_ends(spec, gap):
     expected = ends - 0.5 * gap * EZ
     got = m["points"][np.argsort(m["points"] @ (ends[1] - ends[0]))]
     want = expected[np.argsort(expected @ (ends[1] - ends[0]))]
+    np.testing.assert_allclose(got, want, atol=1e-12)
+
+
+def _edge_beside_a_flatter_face():
+    """A grain (input-frame vertices) whose lowest feature is the edge v0 v1 (along x, at z = 0),
+    with both faces of the edge tilted 17 degrees off -z, and beside it a face holding v1 alone,
+    tilted 6 degrees: the face most opposed to a floor's normal does not hold the edge (as an edge
+    of a scanned grain lying across a neighbour's face)."""
+    return np.array([[-0.3, 0.0, 0.0], [0.3, 0.0, 0.0], [0.6, 0.1, 0.03], [0.6, -0.1, 0.03],
+                     [-0.3, 0.25, 0.35], [0.3, 0.25, 0.35], [-0.3, -0.25, 0.35], [0.3, -0.25, 0.35]])
+
+
+@pytest.mark.parametrize("gap", [0.004, -3e-4])
+def test_edge_on_face_beside_a_more_opposed_face_keeps_both_edge_ends(gap):
+    v = _edge_beside_a_flatter_face()
+    sb = ConvexPolyhedron(v, name="edge-beside-a-flatter-face")
+    sa = platonic("cube", 2.5)
+    qa, pa, ca = face_up(sa)
+    # B turned back to its input frame: a vertex v is at x_B + (v - input centroid)
+    x, y, z, w = Rotation.from_matrix(sb.rotation.T).as_quat()
+    qb = np.array([w, x, y, z])
+    ends = v[:2] - sb.input_centroid
+    xb = ca + gap * EZ - ends.mean(axis=0)
+    np.testing.assert_allclose(world_vertices(sb, qb, xb).min(axis=0)[2], ca[2] + gap, atol=1e-12)
+    cs = detect(make_state([sa, sb], [0, 1], [X0, xb], [qa, qb]), ALERT)
+    m = pair_manifold(cs)
+    # both ends of the edge are points, each at its gap; the far vertices (0.03 d up) are beyond
+    # the alert distance
+    assert m["ctype"] == DOUBLE
+    np.testing.assert_allclose(m["normal"], -EZ, atol=1e-12)
+    np.testing.assert_allclose(m["gaps"], gap, atol=1e-12)
+    want = ends + xb - 0.5 * gap * EZ
+    got = m["points"][np.argsort(m["points"][:, 0])]
     np.testing.assert_allclose(got, want, atol=1e-12)
 
 

@@ -240,8 +240,8 @@ ROCK_PAIR = {
 
 
 def test_an_edge_lying_in_the_other_grains_support_plane_touches_at_both_ends():
-    """The deepest-vertex manifold of two rocks whose contact is an edge lying on a face gives a
-    point at each end of the edge (each with its own depth), not only at the deeper one: the deeper
+    """The manifold of two rocks whose contact is an edge lying on a face gives a point at each
+    end of the edge (each with its own depth), not only at the deeper one: the deeper
     end turns on the last digits, and a single point jumping between the ends from step to step
     rocked the grains of a rock pile at rest for ever (a period-4 cycle, |omega| 5e-4 to 6e-3)."""
     from granpack.box import Box
@@ -258,11 +258,14 @@ def test_an_edge_lying_in_the_other_grains_support_plane_touches_at_both_ends():
         state = ParticleState(box=Box.square(4.0), shapes=ShapeTable.from_shapes(shapes), kind=np.array([0, 1]),
                               population=np.zeros(2, np.int64), position=x.copy(), quaternion=q)
         c = detect(state, 0.02)
-        assert len(c.body_i) == 1 and c.n_points == 2
-        gaps = np.sort(c.gap)
+        # the two ends of the edge, and any other point of the incident face open (within the alert)
+        assert len(c.body_i) == 1 and c.n_points >= 2
+        deepest = np.argsort(c.gap)[:2]
+        gaps = c.gap[deepest]
         assert -5.3e-4 < gaps[0] < gaps[1] < -4.9e-4 and gaps[1] - gaps[0] < 1e-3 * state.shapes.radius.min() * 2
-        ends.append(c.point - x[0])
+        assert np.all(np.delete(c.gap, deepest) > 1e-3)
+        ends.append(c.point[deepest] - x[0])
     # the two points stay at the edge's two ends (to the turn's displacement), whichever is deeper
     for other in ends[1:]:
         assert np.abs(np.sort(other, axis=0) - np.sort(ends[0], axis=0)).max() < 1e-4
-    assert np.linalg.norm(ends[0][0] - ends[0][1]) > 0.2  # the edge's two ends, 0.26 d apart
+    assert np.linalg.norm(ends[0][0] - ends[0][1]) > 0.15  # the ends of the edge's part over the face, 0.19 d apart

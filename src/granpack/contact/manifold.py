@@ -18,35 +18,66 @@ __all__: list[str] = []
 
 
 @jit(inline="always")
+def _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band):
+    """The incident face of a face axis ``n`` (from the reference body towards the incident one):
+    the face (rows ``inc_f0:inc_f1``, world normals ``inc_fn``) that holds the most of the
+    incident body's support vertices along ``-n`` (those within ``band``, d, of the deepest), and
+    of those the one whose normal is most opposed to ``n``.
+
+    Why not simply the face most opposed to ``n``: that face need not touch the reference face. An
+    edge of a scanned grain lying across a face has its two faces tilted off ``-n``, and a third
+    face holding one end of the edge may be more opposed; clipped, it missed the edge, the
+    manifold fell back to one crossing of the edge, and the edge's other end, unconstrained, sank
+    into the face (docs/design-notes.md, "Contact manifolds").
+    """
+    lowest = math.inf
+    for f in range(inc_f0, inc_f1):
+        row = face_row_inc + f - inc_f0
+        for k in range(fvs[row], fvs[row + 1]):
+            v = inc_v0 + fverts[k]
+            lowest = min(lowest, rvi[v, 0] * nx + rvi[v, 1] * ny + rvi[v, 2] * nz)
+    fi = inc_f0
+    most = 0
+    best = math.inf
+    for f in range(inc_f0, inc_f1):
+        row = face_row_inc + f - inc_f0
+        held = 0
+        for k in range(fvs[row], fvs[row + 1]):
+            v = inc_v0 + fverts[k]
+            if rvi[v, 0] * nx + rvi[v, 1] * ny + rvi[v, 2] * nz <= lowest + band:
+                held += 1
+        d = inc_fn[f, 0] * nx + inc_fn[f, 1] * ny + inc_fn[f, 2] * nz
+        if held > most or (held == most and d < best):
+            most, best, fi = held, d, f
+    return fi
+
+
+@jit(inline="always")
 def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0,
-               inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, buf, buf2, out, gout):
+               inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, band, buf, buf2, out, gout):
     """Clip the incident face against the reference face with outward normal ``n``.
 
     The reference body has vertices ``ro + ref_rv[ref_v0:ref_v1]``, world face normals
     ``ref_fn[ref_f0:ref_f1]`` (global face rows of its kind start at ``face_row_ref``); the
-    reference face is the one whose normal is closest to ``n``. The incident body's face is the
-    one whose normal is most opposed to ``n``. Lengths (offsets ``ro``, ``io``, vertex offsets,
-    ``alert``) in d, ``n`` a unit vector; ``buf``, ``buf2``: scratch rows, at least twice the
-    largest face size plus one.
+    reference face is the one whose normal is closest to ``n``. The incident body's face is the one
+    that holds the most of its vertices within ``band`` of its deepest along ``-n``, the most
+    opposed to ``n`` of those (:func:`_incident_face`). Lengths (offsets ``ro``, ``io``, vertex
+    offsets, ``alert``, ``band``) in d, ``n`` a unit vector; ``buf``, ``buf2``: scratch rows, at
+    least twice the largest face size plus one.
 
     Returns:
         ``(count, gmin)``: points written to ``out`` (position on the midpoint between the two
         surfaces) and their gaps ``gout`` (``n . p - delta_ref``), keeping gaps ``<= alert``;
         ``gmin`` is the smallest gap over all clipped points (``inf`` if the clip is empty).
     """
-    # reference face: normal closest to n; incident face: normal most opposed to n
+    # reference face: normal closest to n
     fr = ref_f0
     best = -math.inf
     for f in range(ref_f0, ref_f1):
         d = ref_fn[f, 0] * nx + ref_fn[f, 1] * ny + ref_fn[f, 2] * nz
         if d > best:
             best, fr = d, f
-    fi = inc_f0
-    best = math.inf
-    for f in range(inc_f0, inc_f1):
-        d = inc_fn[f, 0] * nx + inc_fn[f, 1] * ny + inc_fn[f, 2] * nz
-        if d < best:
-            best, fi = d, f
+    fi = _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band)
     _, delta = _interval(ref_rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
     row_i = face_row_inc + fi - inc_f0
     m = 0

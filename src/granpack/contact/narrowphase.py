@@ -20,8 +20,9 @@ Pair kinds (docs/method/contact-detection.md):
   (:func:`~granpack.contact.separating_axes._sat`) over the face normals of both bodies
   and the cross products of their edge directions, stopping at the first axis that separates by
   more than the alert distance. The manifold comes from the best axis: for a face axis, the
-  incident face of the other body clipped against the reference face's side planes
-  (Sutherland-Hodgman), **every vertex of the clipped polygon a point** (up to eight for two
+  incident face of the other body (the face holding its support vertices,
+  :func:`~granpack.contact.manifold._incident_face`) clipped against the reference face's side
+  planes (Sutherland-Hodgman), **every vertex of the clipped polygon a point** (up to eight for two
   pinacoid faces); for an edge axis, the closest points of the two supporting edges. Face axes
   are preferred unless an edge axis is better by more than ``eps_f`` (hysteresis).
 
@@ -205,14 +206,14 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                 nx, ny, nz = g * ax[kfa, 0], g * ax[kfa, 1], g * ax[kfa, 2]
                 cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], fn, rv, b0, ox, oy, oz, pf[b],
                                        pf[b + 1], fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert,
-                                       buf, buf2, pts, gp)
+                                       eps_f, buf, buf2, pts, gp)
             else:
                 g = gfb
                 nx, ny, nz = g * ax[kfb, 0], g * ax[kfb, 1], g * ax[kfb, 2]
                 # reference face on B, outward normal -n
                 cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], fn, rv, a0, 0.0, 0.0, 0.0, pf[a],
                                        pf[a + 1], fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert,
-                                       buf, buf2, pts, gp)
+                                       eps_f, buf, buf2, pts, gp)
             if cnt == 0:
                 continue
             if sigma <= 0.0 and sk < sigma:
