@@ -18,11 +18,12 @@ __all__: list[str] = []
 
 
 @jit(inline="always")
-def _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band):
+def _incident_face(rvi, inc_v0, inc_v1, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band, heights):
     """The incident face of a face axis ``n`` (from the reference body towards the incident one):
     the face (rows ``inc_f0:inc_f1``, world normals ``inc_fn``) that holds the most of the
     incident body's support vertices along ``-n`` (those within ``band``, d, of the deepest), and
-    of those the one whose normal is most opposed to ``n``.
+    of those the one whose normal is most opposed to ``n``. ``heights`` (at least
+    ``inc_v1 - inc_v0`` rows) is scratch for the vertices' heights along ``n``, d.
 
     Why not simply the face most opposed to ``n``: that face need not touch the reference face. An
     edge of a scanned grain lying across a face has its two faces tilted off ``-n``, and a third
@@ -31,11 +32,11 @@ def _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_in
     into the face (docs/design-notes.md, "Contact manifolds").
     """
     lowest = math.inf
-    for f in range(inc_f0, inc_f1):
-        row = face_row_inc + f - inc_f0
-        for k in range(fvs[row], fvs[row + 1]):
-            v = inc_v0 + fverts[k]
-            lowest = min(lowest, rvi[v, 0] * nx + rvi[v, 1] * ny + rvi[v, 2] * nz)
+    for v in range(inc_v0, inc_v1):
+        hv = rvi[v, 0] * nx + rvi[v, 1] * ny + rvi[v, 2] * nz
+        heights[v - inc_v0] = hv
+        lowest = min(lowest, hv)
+    top = lowest + band
     fi = inc_f0
     most = 0
     best = math.inf
@@ -43,8 +44,7 @@ def _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_in
         row = face_row_inc + f - inc_f0
         held = 0
         for k in range(fvs[row], fvs[row + 1]):
-            v = inc_v0 + fverts[k]
-            if rvi[v, 0] * nx + rvi[v, 1] * ny + rvi[v, 2] * nz <= lowest + band:
+            if heights[fverts[k]] <= top:
                 held += 1
         d = inc_fn[f, 0] * nx + inc_fn[f, 1] * ny + inc_fn[f, 2] * nz
         if held > most or (held == most and d < best):
@@ -53,17 +53,21 @@ def _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_in
 
 
 @jit(inline="always")
-def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rvi, inc_v0, iox, ioy, ioz, inc_f0,
-               inc_f1, inc_fn, fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, band, buf, buf2, out, gout):
+def _clip_face(rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, inc_v0, inc_v1, iox, ioy, ioz, inc_f0, inc_f1, fn,
+               fvs, fverts, face_row_ref, face_row_inc, nx, ny, nz, alert, band, heights, buf, buf2, out, gout):
     """Clip the incident face against the reference face with outward normal ``n``.
 
-    The reference body has vertices ``ro + ref_rv[ref_v0:ref_v1]``, world face normals
-    ``ref_fn[ref_f0:ref_f1]`` (global face rows of its kind start at ``face_row_ref``); the
+    Both bodies are rows of the world vertices ``rv`` and face normals ``fn`` (one pair of arrays
+    for both: CPython compiles a call of more than 30 arguments as ``f(*args)``, which Numba
+    cannot inline). The reference body has vertices ``ro + rv[ref_v0:ref_v1]`` and faces
+    ``fn[ref_f0:ref_f1]`` (global face rows of its kind start at ``face_row_ref``), the incident
+    one ``io + rv[inc_v0:inc_v1]`` and ``fn[inc_f0:inc_f1]`` (``face_row_inc``); the
     reference face is the one whose normal is closest to ``n``. The incident body's face is the one
     that holds the most of its vertices within ``band`` of its deepest along ``-n``, the most
     opposed to ``n`` of those (:func:`_incident_face`). Lengths (offsets ``ro``, ``io``, vertex
-    offsets, ``alert``, ``band``) in d, ``n`` a unit vector; ``buf``, ``buf2``: scratch rows, at
-    least twice the largest face size plus one.
+    offsets, ``alert``, ``band``) in d, ``n`` a unit vector; ``heights``: scratch of at least the
+    incident body's vertex count; ``buf``, ``buf2``: scratch rows, at least twice the largest face
+    size plus one.
 
     Returns:
         ``(count, gmin)``: points written to ``out`` (position on the midpoint between the two
@@ -74,18 +78,19 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
     fr = ref_f0
     best = -math.inf
     for f in range(ref_f0, ref_f1):
-        d = ref_fn[f, 0] * nx + ref_fn[f, 1] * ny + ref_fn[f, 2] * nz
+        d = fn[f, 0] * nx + fn[f, 1] * ny + fn[f, 2] * nz
         if d > best:
             best, fr = d, f
-    fi = _incident_face(rvi, inc_v0, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band)
-    _, delta = _interval(ref_rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
+    fi = _incident_face(rv, inc_v0, inc_v1, inc_f0, inc_f1, fn, fvs, fverts, face_row_inc, nx, ny, nz, band,
+                        heights)
+    _, delta = _interval(rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
     row_i = face_row_inc + fi - inc_f0
     m = 0
     for k in range(fvs[row_i], fvs[row_i + 1]):
         v = inc_v0 + fverts[k]
-        buf[m, 0] = iox + rvi[v, 0]
-        buf[m, 1] = ioy + rvi[v, 1]
-        buf[m, 2] = ioz + rvi[v, 2]
+        buf[m, 0] = iox + rv[v, 0]
+        buf[m, 1] = ioy + rv[v, 1]
+        buf[m, 2] = ioz + rv[v, 2]
         m += 1
     row_r = face_row_ref + fr - ref_f0
     r0, r1 = fvs[row_r], fvs[row_r + 1]
@@ -93,10 +98,10 @@ def _clip_face(ref_rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, ref_fn, rv
     for e in range(nr):
         va = ref_v0 + fverts[r0 + e]
         vb = ref_v0 + fverts[r0 + (e + 1) % nr]
-        ax_, ay_, az_ = rox + ref_rv[va, 0], roy + ref_rv[va, 1], roz + ref_rv[va, 2]
-        ex = rox + ref_rv[vb, 0] - ax_
-        ey = roy + ref_rv[vb, 1] - ay_
-        ez = roz + ref_rv[vb, 2] - az_
+        ax_, ay_, az_ = rox + rv[va, 0], roy + rv[va, 1], roz + rv[va, 2]
+        ex = rox + rv[vb, 0] - ax_
+        ey = roy + rv[vb, 1] - ay_
+        ez = roz + rv[vb, 2] - az_
         # side plane normal (outward of the face polygon) and offset
         sx = ey * nz - ez * ny
         sy = ez * nx - ex * nz

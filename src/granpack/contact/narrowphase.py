@@ -122,7 +122,7 @@ Scratch = namedtuple("Scratch", [
     "polygon",  # (M, 3) float64: the incident face as it is clipped, A-centred frame, d (_clip_face)
     "clipped",  # (M, 3) float64: the polygon after one more side plane, d (_clip_face)
     "vertex_block",  # (3, 2M) float64: a pair's vertices, coordinate-major, A's then B's shifted, d (X of _sat)
-    "heights",  # (2M,) float64: heights of the vertex block along an edge-edge axis, d (_edge_contact)
+    "heights",  # (2M,) float64: vertex heights along an axis, d (_edge_contact's block, _clip_face's incident body)
 ])
 
 #: The candidate pairs of the broad phase, as CSR over the first body ``i``.
@@ -204,16 +204,16 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
             if which == _AXIS_FACE_A:
                 g = gfa
                 nx, ny, nz = g * ax[kfa, 0], g * ax[kfa, 1], g * ax[kfa, 2]
-                cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], fn, rv, b0, ox, oy, oz, pf[b],
-                                       pf[b + 1], fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert,
-                                       eps_f, buf, buf2, pts, gp)
+                cnt, gmin = _clip_face(rv, a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1], b0, b1, ox, oy, oz, pf[b], pf[b + 1],
+                                       fn, fvs, fverts, face_start[ka], face_start[kb], nx, ny, nz, alert, eps_f, h, buf,
+                                       buf2, pts, gp)
             else:
                 g = gfb
                 nx, ny, nz = g * ax[kfb, 0], g * ax[kfb, 1], g * ax[kfb, 2]
                 # reference face on B, outward normal -n
-                cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], fn, rv, a0, 0.0, 0.0, 0.0, pf[a],
-                                       pf[a + 1], fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert,
-                                       eps_f, buf, buf2, pts, gp)
+                cnt, gmin = _clip_face(rv, b0, b1, ox, oy, oz, pf[b], pf[b + 1], a0, a1, 0.0, 0.0, 0.0, pf[a], pf[a + 1],
+                                       fn, fvs, fverts, face_start[kb], face_start[ka], -nx, -ny, -nz, alert, eps_f, h,
+                                       buf, buf2, pts, gp)
             if cnt == 0:
                 continue
             if sigma <= 0.0 and sk < sigma:
