@@ -79,6 +79,30 @@ def test_a_pile_at_rest_with_deeper_overlaps_than_the_rest_slop_pushes_them_back
     assert loose["simulated_time"] == summary["simulated_time"]
 
 
+@pytest.mark.parametrize("keep", [True, False])
+def test_the_velocity_laws_recovery_stops_near_rest_when_the_setting_says_so(keep, monkeypatch):
+    """``overlap.recovery_near_rest = false``: once the pile is near rest its steps are solved
+    without the recovery's push (speed 0); before that, and always with the default, with the
+    configured speed."""
+    config = sphere_config(n=20)
+    config = config.model_copy(update={"overlap": config.overlap.model_copy(update={"recovery_near_rest": keep})})
+    state, mixture = simulation.initial_state(config)
+    run = settling.Settling(config, mixture, state, None, RunRecord())
+    speeds = []
+    solve = settling.advance
+
+    def spy(state, prediction, detected, params, *args, **kwargs):
+        speeds.append(params.recovery_speed)
+        return solve(state, prediction, detected, params, *args, **kwargs)
+
+    monkeypatch.setattr(settling, "advance", spy)
+    run.advance()
+    run.record.milestones.near_rest = True
+    run.advance()
+    assert speeds[0] == config.overlap.recovery_speed > 0
+    assert speeds[-1] == (config.overlap.recovery_speed if keep else 0.0)
+
+
 def test_timeline_records_every_check_and_the_end_game(settled):
     """timeline.csv: one row per equilibrium check, its columns; the end game started once the
     kinetic criterion fell below end_game.damping_below, and from then on the damping (none on the

@@ -96,6 +96,8 @@ def _default(name: str, field) -> str:
         return ""
     if value is None:
         return "automatic" if name in ("alert_distance", "name") else "unset"
+    if isinstance(value, bool):
+        return "`true`" if value else "`false`"
     if isinstance(value, str):
         return f'`"{value}"`'
     if isinstance(value, tuple):

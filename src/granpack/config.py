@@ -627,6 +627,11 @@ class OverlapConfig(_Model):
         "none (the plain velocity-level law, which never pushes an overlap back, as LMGC90's).")
     recovery_speed: _Number = _setting(0.05, "sqrt(g d)", ge=0,
                                        description="Largest separating speed of the overlap recovery.")
+    recovery_near_rest: bool = _setting(
+        True, description="Whether that recovery still pushes once the pile is near rest (kinetic criterion "
+        "below solver.tolerance_below): true, every run's rule so far; false stops it there, the projection "
+        "(projection_slop) left as the backstop. Piles of scanned grains rest with false: their many-point "
+        "face contacts hold overlaps the recovery pushes against step after step.")
     rest_recovery_slop: _Number = _setting(
         5e-5, "d", ge=0, description="With `rest_recovery_speed` > 0: when the pile first meets the criteria "
         "with a deeper overlap, the overlaps deeper than this are pushed back too, at most at "
@@ -934,7 +939,9 @@ def _alert_distance(stepping: TimeSteppingConfig, largest_size: float) -> float:
 
 
 def _toml_value(value: Any) -> str:
-    """One TOML value: int, finite float, str, or a (nested) array of them (the schema has no bool)."""
+    """One TOML value: bool, int, finite float, str, or a (nested) array of them."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, int):
         return str(value)
     if isinstance(value, float):

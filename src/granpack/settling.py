@@ -15,7 +15,8 @@ every ``equilibrium.check_interval``; the phase it is in (:attr:`Settling.phase`
   not which forces hold it there; the checks judge undamped steps;
 - ``"settle"``: from the first check below ``solver.tolerance_below``, the NLGS is solved to
   ``solver.tolerance``, and only these checks count towards the window, since the force criteria
-  need converged forces; a pile that stays near rest without meeting the criteria may be shaken
+  need converged forces; with ``overlap.recovery_near_rest = false`` the velocity law's overlap
+  recovery stops (a pile of scanned grains held overlaps it pushed against for ever); a pile that stays near rest without meeting the criteria may be shaken
   (``end_game.shake_speed``);
 - ``"certify"``: checks passed in a row; ``equilibrium.window`` of them end the run at rest (with
   ``overlap.rest_recovery_speed`` > 0, the first time its deeper overlaps are pushed back slowly
@@ -97,6 +98,8 @@ class SettlingPolicy:
         shake_interval: ... at most once per this simulated time.
         rest_recovery_slop: the overlap a pile at rest is pushed back to, d ...
         rest_recovery_speed: ... at most at this speed, sqrt(g d); 0: never.
+        recovery_near_rest: whether the velocity law's overlap recovery still pushes near rest
+            (``overlap.recovery_near_rest``).
         seed: the run's seed (the random directions of the shakes).
     """
 
@@ -116,6 +119,7 @@ class SettlingPolicy:
     shake_interval: float
     rest_recovery_slop: float
     rest_recovery_speed: float
+    recovery_near_rest: bool
     seed: int
 
 
@@ -135,7 +139,7 @@ def settling_policy(config: RunConfig) -> SettlingPolicy:
         pour_projection_interval=o.pour_projection_interval, damping=e.mode == "damping", damping_rate=e.damping_rate,
         damping_below=e.damping_below, shake_speed=e.shake_speed, shake_below=e.shake_below,
         shake_interval=e.shake_interval, rest_recovery_slop=o.rest_recovery_slop,
-        rest_recovery_speed=o.rest_recovery_speed, seed=config.seed,
+        rest_recovery_speed=o.rest_recovery_speed, recovery_near_rest=o.recovery_near_rest, seed=config.seed,
     )
 
 
@@ -243,6 +247,8 @@ class Settling:
         damping = policy.damping_rate if m.end_game and not checking else 0.0
         step_params = replace(params, alert=alert, tolerance=self.tolerance, overlap_slop=slop, time_step=self.step_h,
                               damping=damping)
+        if m.near_rest and not policy.recovery_near_rest:
+            step_params = replace(step_params, recovery_speed=0.0)
         if m.rest_recovery_from is not None:
             step_params = replace(step_params, slow_recovery_slop=policy.rest_recovery_slop,
                                   slow_recovery_speed=policy.rest_recovery_speed)
