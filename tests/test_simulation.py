@@ -630,7 +630,8 @@ def test_the_settling_policy_takes_each_of_its_settings_from_the_config():
                                 "time_stepping": {"max_rotation": 0.1},
                                 "solver": {"settling_tolerance": 2e-3, "tolerance_below": 2e-5},
                                 "overlap": {"pour_projection_slop": 3e-3, "pour_projection_interval": 7,
-                                            "rest_recovery_slop": 6e-5, "rest_recovery_speed": 1e-3},
+                                            "rest_recovery_slop": 6e-5, "rest_recovery_speed": 1e-3,
+                                            "recovery_near_rest": False},
                                 "end_game": {"mode": "none", "damping_rate": 2.0, "damping_below": 2e-3,
                                              "shake_speed": 1e-3, "shake_below": 2e-7, "shake_interval": 6.0},
                                 "equilibrium": {"max_time": 50.0, "check_interval": 0.5, "window": 3}})
