@@ -16,8 +16,8 @@ every ``equilibrium.check_interval``; the phase it is in (:attr:`Settling.phase`
 - ``"settle"``: from the first check below ``solver.tolerance_below``, the NLGS is solved to
   ``solver.tolerance``, and only these checks count towards the window, since the force criteria
   need converged forces; with ``overlap.recovery_near_rest = false`` the velocity law's overlap
-  recovery stops (a pile of scanned grains held overlaps it pushed against for ever); a pile that stays near rest without meeting the criteria may be shaken
-  (``end_game.shake_speed``);
+  recovery stops (a pile of scanned grains held overlaps it pushed against for ever); a pile
+  that stays near rest without meeting the criteria may be shaken (``end_game.shake_speed``);
 - ``"certify"``: checks passed in a row; ``equilibrium.window`` of them end the run at rest (with
   ``overlap.rest_recovery_speed`` > 0, the first time its deeper overlaps are pushed back slowly
   and the window starts again).
