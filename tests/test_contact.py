@@ -1073,6 +1073,175 @@ def test_previous_axis_is_kept_within_five_bands_and_left_beyond(eps_f, kept):
         assert abs(m["normal"] @ face_normal) < 0.99995 and m["ctype"] == SIMPLE and len(m["gaps"]) == 1
 
 
+# the scan pile's pair whose kept face axis put a point beside the face, outside the other grain
+_KEPT_AXIS_LOWER = np.array([
+    [0.152668942, 0.280082552, -0.374653412],
+    [0.280649103, 0.115351004, -0.348397572],
+    [0.147498705, 0.161980701, -0.263129443],
+    [0.405999652, -0.173486030, -0.414787766],
+    [0.322160106, 0.077053550, -0.517793844],
+    [0.378670004, -0.246555682, -0.551483874],
+    [0.195297617, -0.024005882, -0.678924092],
+    [0.020399332, 0.238010182, -0.597529407],
+    [-0.043382051, 0.328683664, -0.393615778],
+    [0.284938926, -0.189147197, -0.215655949],
+    [0.259683525, -0.567310998, -0.333266215],
+    [-0.202360202, 0.186461536, -0.486424643],
+    [-0.198769963, 0.212473460, -0.360875060],
+    [-0.153714546, -0.075000736, -0.646680110],
+    [0.135068177, -0.605134569, -0.581684103],
+    [-0.002920950, -0.597428845, -0.325661130],
+    [-0.220954203, -0.146940913, -0.243016506],
+    [-0.179547415, -0.471622219, -0.422717730],
+    [-0.279781673, -0.159167241, -0.451742618],
+    [-0.025387317, -0.493766323, -0.603229966],
+    [0.075827087, -0.301269050, -0.167625934],
+    [-0.099765282, 0.109447934, -0.221034164],
+    [0.133401913, -0.412503141, -0.664093382],
+    [0.349462981, -0.505415477, -0.490641208],
+])
+_KEPT_AXIS_UPPER = np.array([
+    [-0.077071689, -0.233987710, -0.134157298],
+    [-0.156040548, -0.353279219, -0.037802824],
+    [0.054895044, -0.333222759, -0.036661772],
+    [0.144385217, -0.143400839, -0.204558431],
+    [0.332240345, -0.088455945, -0.122208595],
+    [0.021781146, -0.317289876, 0.157858144],
+    [-0.263220763, -0.379613311, 0.208935491],
+    [-0.373013715, -0.333247888, 0.154185996],
+    [0.272935598, 0.040160522, -0.255615531],
+    [-0.358318502, -0.087468583, -0.012761199],
+    [-0.437526734, -0.126317123, 0.225815445],
+    [-0.170913458, -0.114950261, 0.290850072],
+    [0.187007446, -0.085472789, 0.119243650],
+    [0.364081938, 0.147019847, -0.062380854],
+    [0.118650802, 0.345088043, -0.176338602],
+    [-0.127822014, 0.202012273, -0.125280896],
+    [-0.289564188, 0.197802400, 0.074712204],
+    [-0.004488145, 0.363913482, 0.049429298],
+    [-0.154281866, 0.141629623, 0.242139003],
+    [0.148219251, 0.321702092, 0.071316214],
+    [0.273405015, 0.361153414, -0.148130812],
+    [0.047896555, 0.087988959, -0.238178293],
+    [0.097917462, 0.167164065, 0.164431630],
+    [0.345632633, 0.212425393, -0.213387018],
+])
+_KEPT_AXIS_PREVIOUS_NORMAL = np.array([np.float64(-0.1159212075552653), np.float64(-0.18998639931353056), np.float64(-0.9749191975311644)])
+
+
+def test_a_face_axis_kept_by_the_hysteresis_puts_every_point_where_the_grains_meet():
+    """Two scan-like grains of a pile near rest (24 vertices each), overlapping by 1.804e-3 d along
+    the lower grain's face; the previous normal is the upper grain's face 0.8 degrees away, along
+    which the lower grain seems to overlap 3.7e-3 d: its deepest vertex lies below that face's
+    plane but beside the face, 0.06 d outside the upper grain. The kept manifold's deepest point was
+    that vertex (a force where the grains do not touch, while the vertex that is truly deepest had
+    no point and sank step after step); it must be the point where the grains are 1.804e-3 d deep,
+    and every point must lie within half its gap of both grains."""
+    shapes, positions, quaternions = [], [], []
+    for vertices in (_KEPT_AXIS_LOWER, _KEPT_AXIS_UPPER):
+        shape = ConvexPolyhedron(vertices + X0)
+        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
+        shapes.append(shape)
+        positions.append(shape.input_centroid)
+        quaternions.append([w, x, y, z])
+    state = make_state(shapes, [0, 1], positions, quaternions)
+    fresh = Detector().detect(state, 0.02)
+    depth = -pair_manifold(fresh)["gaps"].min()
+    assert depth == pytest.approx(1.804e-3, abs=1e-6)
+    assert abs(pair_manifold(fresh)["normal"] @ _KEPT_AXIS_PREVIOUS_NORMAL) < 0.99995  # another axis
+    previous = ContactSet(**{**fresh.__dict__, "normal": np.array(fresh.normal, float)})
+    previous.normal[0] = _KEPT_AXIS_PREVIOUS_NORMAL
+    kept = pair_manifold(Detector().detect(state, 0.02, previous=previous))
+    assert abs(kept["normal"] @ _KEPT_AXIS_PREVIOUS_NORMAL) > 1 - 1e-9  # the hysteresis keeps the axis
+    assert kept["gaps"].min() == pytest.approx(-depth, abs=1e-12)
+    for point, gap in zip(kept["points"], kept["gaps"]):
+        for vertices in (_KEPT_AXIS_LOWER, _KEPT_AXIS_UPPER):
+            assert point_hull_distance(point, vertices + X0) <= 0.5 * abs(gap) + 1e-9
+
+
+# the scan pile's separated pair whose kept face axis gave overlapping points
+_SEPARATED_LOWER = np.array([
+    [0.366597818, -0.084567340, -0.188252713],
+    [0.132655501, 0.133253976, -0.370478048],
+    [0.083761801, -0.085181291, -0.214993488],
+    [-0.195454396, -0.089364516, -0.453626818],
+    [0.064175383, -0.311080205, -0.295461853],
+    [0.303774787, -0.379911746, -0.241958755],
+    [0.494242369, -0.159196140, -0.226990573],
+    [-0.197887723, 0.138194560, -0.727683508],
+    [0.009737526, 0.220381695, -0.654671168],
+    [0.490541873, 0.002313175, -0.371632138],
+    [0.556419089, -0.362263384, -0.392658946],
+    [-0.204976040, -0.137259511, -0.824011171],
+    [0.171849710, 0.136040208, -0.905580351],
+    [0.291647956, -0.070566168, -0.972620791],
+    [0.492440201, -0.169480083, -0.770667545],
+    [0.151265041, -0.219852370, -0.969935239],
+    [-0.016419541, -0.240757300, -0.921107007],
+    [-0.112550240, -0.065925911, -0.994340657],
+    [-0.102393687, 0.098959320, -0.952612710],
+    [0.221964993, 0.192253337, -0.694654162],
+    [0.594464976, -0.160640017, -0.499761758],
+    [0.506313233, 0.000300812, -0.641466566],
+    [0.303099046, -0.420227950, -0.702997322],
+    [0.002829236, -0.373748814, -0.650110156],
+])
+_SEPARATED_UPPER = np.array([
+    [0.116631209, -0.357669990, -0.006356311],
+    [0.230652835, -0.255746097, 0.064050391],
+    [-0.111942783, -0.306671709, 0.000285358],
+    [-0.080473280, -0.221179492, 0.126911691],
+    [-0.281522557, -0.153655970, -0.073063037],
+    [0.066242425, -0.235753682, -0.194163007],
+    [0.327816763, -0.300466897, -0.128818191],
+    [-0.391458439, 0.014855593, 0.180560163],
+    [0.167259131, 0.102513998, 0.172119533],
+    [0.468892368, -0.115045118, -0.106730397],
+    [0.103644130, 0.037930245, -0.208462261],
+    [-0.413531786, -0.048837117, 0.043132017],
+    [-0.370944148, 0.173650448, -0.020553499],
+    [-0.114927461, 0.371663903, 0.136992678],
+    [-0.180686547, 0.237441207, 0.234987196],
+    [0.267167480, 0.244888790, -0.004585039],
+    [0.013111060, 0.278349562, -0.094444710],
+    [-0.251290175, 0.306915784, -0.015316681],
+    [-0.420927190, 0.217495945, 0.153372476],
+    [-0.076175921, 0.035045601, 0.223364013],
+    [0.398248209, -0.111676877, 0.027176887],
+    [0.344047116, -0.070037512, -0.190542776],
+    [0.351000547, 0.064022086, -0.160611640],
+    [-0.153381790, 0.102769628, -0.152152525],
+])
+_SEPARATED_PREVIOUS_NORMAL = np.array([np.float64(0.052761017093588214), np.float64(-0.06753689558071047), np.float64(-0.9963207529759535)])
+
+
+def test_a_face_axis_kept_by_the_hysteresis_gives_no_overlap_between_separated_grains():
+    """Two scan-like grains 1.816e-3 d apart across crossed edges; the previous normal is a face of
+    the lower grain 4.6 degrees away, along which their shadows overlap by 2.5e-4 d, within the
+    hysteresis's band. Clipped on that face, the manifold gave points 1.2e-4 and 2.1e-4 d deep, up
+    to 0.03 d outside the lower grain: forces between grains that do not touch. A separated
+    pair's smallest gap cannot be below the best separation, so such a manifold is left for the
+    next axis: the manifold is the crossing of the edges, at the exact distance."""
+    shapes, positions, quaternions = [], [], []
+    for vertices in (_SEPARATED_LOWER, _SEPARATED_UPPER):
+        shape = ConvexPolyhedron(vertices + X0)
+        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
+        shapes.append(shape)
+        positions.append(shape.input_centroid)
+        quaternions.append([w, x, y, z])
+    state = make_state(shapes, [0, 1], positions, quaternions)
+    distance, _ = exact_gap(_SEPARATED_LOWER, _SEPARATED_UPPER)
+    assert distance == pytest.approx(1.816e-3, abs=1e-6)
+    fresh = Detector().detect(state, 0.02)
+    previous = ContactSet(**{**fresh.__dict__, "normal": np.array(fresh.normal, float)})
+    previous.normal[0] = _SEPARATED_PREVIOUS_NORMAL
+    m = pair_manifold(Detector().detect(state, 0.02, previous=previous))
+    assert m["gaps"].min() == pytest.approx(distance, abs=1e-9)
+    for point, gap in zip(m["points"], m["gaps"]):
+        for vertices in (_SEPARATED_LOWER, _SEPARATED_UPPER):
+            assert point_hull_distance(point, vertices + X0) <= 0.5 * abs(gap) + 1e-9
+
+
 @pytest.mark.parametrize("shape", [Sphere(1.0), Pinacoid.from_size(1.0, 1, 1)], ids=["spheres", "pinacoids"])
 def test_per_body_reach_keeps_slow_pairs_at_the_base_alert_distance(shape):
     """A fast grain raises the alert distance of its own pairs only: with ``reach`` the slow pair

@@ -378,3 +378,38 @@ def _clamp_gaps(gp, cnt, floor):
             gp[k] = floor
         low = min(low, gp[k])
     return low
+
+
+@jit
+def _deepest_feature(rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax, ea0, ea1, eb0, eb1,
+                     edges, X, h, pts, gp):
+    """The point where the best separating axis finds the bodies deepest, in ``pts[0]``, ``gp[0]``
+    (frame and units as :func:`_gjk_manifold`): the other body's support vertex below the best face
+    axis's face (``sfa``: A's face, normal ``gfa ax[kfa]``; ``sfb``: B's), or the crossing of the
+    best edge axis (``se``, normal ``e``); its gap is that axis's separation. Returns 1, or 0 if
+    the edge axis gives no crossing.
+
+    Why: a manifold built on another axis that the hysteresis keeps (a fraction of a degree away)
+    clips one face against the other, and the vertex that is deepest along the best axis may belong
+    to neither face; without a point there, nothing stops it sinking further, step after step.
+    """
+    if se >= sfa and se >= sfb:
+        if _edge_contact(rv, a0, a1, b0, b1, ox, oy, oz, ea0, ea1, eb0, eb1, edges, ex, ey, ez, se, X, h, pts, gp) == 1:
+            _clamp_gaps(gp, 1, se)
+            return 1
+        return 0
+    if sfa >= sfb:
+        return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, gfa * ax[kfa, 0], gfa * ax[kfa, 1], gfa * ax[kfa, 2], sfa,
+                              False, 0.0, pts, gp)
+    return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2], sfb, True,
+                          0.0, pts, gp)
+
+
+@jit(inline="always")
+def _apart(pts, cnt, eps):
+    """Whether ``pts[cnt]`` is farther than ``eps`` (d) from each of ``pts[:cnt]``."""
+    for k in range(cnt):
+        dx, dy, dz = pts[cnt, 0] - pts[k, 0], pts[cnt, 1] - pts[k, 1], pts[cnt, 2] - pts[k, 2]
+        if dx * dx + dy * dy + dz * dz <= eps * eps:
+            return False
+    return True

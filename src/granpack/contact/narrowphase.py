@@ -32,8 +32,10 @@ distance between two surface points, bounds from above: both are then the distan
 (vertex-vertex, vertex-edge, parallel edges) the distance and closest points come from GJK. For
 an interpenetrating pair the smallest gap is minus the penetration depth, the best
 separating-axis value ``σ <= 0``, and no point's gap is set below ``σ`` even when the hysteresis
-keeps another axis: along such an axis the bodies seem to overlap by up to ``eps_f`` more, and
-the position correction would chase those phantom overlaps.
+keeps another axis: along such an axis the bodies seem to overlap by up to ``_KEEP_BAND eps_f``
+more, and the position correction would chase those phantom overlaps. For the same reason the
+point such a manifold adds at the depth is the best axis's deepest feature, not the kept axis's
+deepest vertex, which may lie beside the reference face, outside the other body.
 
 Why every vertex: keeping four points of a clipped polygon (a common reduction) leaves the
 others unconstrained, and a grain rocking about the kept ones slowly sinks them into its
@@ -66,8 +68,10 @@ from granpack._numba import jit
 from granpack.contact._gjk import gjk_distance
 from granpack.contact.contacts import manifold_type_nb
 from granpack.contact.manifold import (
+    _apart,
     _clamp_gaps,
     _clip_face,
+    _deepest_feature,
     _deepest_point,
     _edge_contact,
     _gjk_manifold,
@@ -217,12 +221,23 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
             if cnt == 0:
                 continue
             if sigma <= 0.0 and sk < sigma:
-                # interpenetration, this face axis preferred to the best one by the hysteresis:
-                # along it the bodies overlap by up to eps_f more than their penetration depth
-                # -sigma (a vertex below the face's plane but beside the face), so no point is
-                # given a gap below sigma and the smallest gap is the exact depth
-                gmin = _clamp_gaps(gp, cnt, sigma)
-                sk = sigma
+                # interpenetration, this face axis kept by the hysteresis though another is better:
+                # along it the bodies seem to overlap by up to _KEEP_BAND eps_f more than their
+                # penetration depth -sigma (a vertex below the face's plane but beside the face, maybe
+                # outside the other body), so no point is given a gap below sigma, and the point
+                # where they are that deep is the best axis's deepest feature, not this axis's
+                _clamp_gaps(gp, cnt, sigma)
+                if cnt < pts.shape[0] and _deepest_feature(
+                        rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax, edge_start[ka],
+                        edge_start[ka + 1], edge_start[kb], edge_start[kb + 1], edges, X, h, pts[cnt:], gp[cnt:]) == 1 \
+                        and _apart(pts, cnt, eps_f):
+                    cnt += 1
+                return cnt, nx, ny, nz
+            if sigma > 0.0 and gmin < sigma - tol_x:
+                # separated, and a gap below the best separation, which bounds the distance from
+                # below: the clipped points are not pairs of surface points (a face axis the
+                # hysteresis kept, another axis separating the bodies); not a manifold
+                continue
             if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
                 # the smallest gap is the axis separation, or, separated, the best separation of
                 # every axis (a lower bound of the distance that a pair of surface points meets)
