@@ -1242,6 +1242,86 @@ def test_a_face_axis_kept_by_the_hysteresis_gives_no_overlap_between_separated_g
             assert point_hull_distance(point, vertices + X0) <= 0.5 * abs(gap) + 1e-9
 
 
+# the scan pile's pair whose face axis of the wrong sign was clipped on a face 13 degrees off
+_OTHER_SIDE_LOWER = np.array([
+    [0.241490706, 0.275143242, -0.624101941],
+    [0.278881860, 0.062776184, -0.767182588],
+    [-0.037336348, 0.141070342, -0.654929317],
+    [-0.033135708, 0.141541755, -0.414380338],
+    [0.223773963, 0.294520108, -0.501815921],
+    [0.524382493, 0.200248293, -0.384760161],
+    [0.540419246, 0.216049411, -0.571450576],
+    [-0.194159824, -0.090509989, -0.649280528],
+    [0.629349883, 0.077652846, -0.440848262],
+    [0.175243936, 0.102716019, -0.259328878],
+    [-0.239783489, -0.142602364, -0.387665347],
+    [0.136804117, -0.518623310, -0.519732912],
+    [-0.088671376, -0.460618169, -0.628530968],
+    [0.279244095, -0.441563107, -0.370150012],
+    [0.343380172, -0.265079371, -0.250362867],
+    [-0.015741951, -0.495721094, -0.371805675],
+    [0.105535345, -0.320826327, -0.224797950],
+    [-0.217975519, -0.383978965, -0.371400919],
+    [0.224734084, -0.301437836, -0.714385221],
+    [0.031759280, -0.171436149, -0.772341969],
+    [0.573420710, -0.157153377, -0.489439631],
+    [0.449090563, -0.187784919, -0.671403957],
+    [0.417885339, -0.046548047, -0.250549613],
+    [-0.068680483, -0.124650070, -0.263687440],
+])
+_OTHER_SIDE_UPPER = np.array([
+    [-0.363625433, 0.270591244, 0.119945134],
+    [0.102828267, 0.401785597, 0.070782674],
+    [-0.167079658, 0.384863022, -0.121217569],
+    [0.168941975, 0.402612982, -0.078579719],
+    [-0.253852828, 0.168298336, -0.243988324],
+    [-0.407492505, 0.263281743, -0.012464117],
+    [-0.510270071, -0.015126359, -0.042745946],
+    [-0.214520761, 0.125998999, 0.239399704],
+    [-0.154616457, -0.109067128, 0.280165517],
+    [-0.441406665, -0.164581148, 0.123812517],
+    [-0.077119721, -0.080049296, -0.273582978],
+    [0.173528903, 0.279802437, -0.195936017],
+    [0.421580746, -0.105631502, 0.154300147],
+    [0.299327911, -0.151836070, 0.244893058],
+    [-0.142473858, -0.402351121, 0.168301970],
+    [0.171663813, -0.427232256, 0.024013220],
+    [-0.088468224, -0.387010720, -0.093956656],
+    [0.393013473, -0.234974150, -0.044339970],
+    [0.137990923, -0.313692769, -0.152206947],
+    [0.171743357, 0.127698739, 0.247503390],
+    [-0.417774183, -0.184583461, -0.132686171],
+    [0.304526029, -0.069779589, -0.203914393],
+    [0.460498348, 0.040284210, -0.093140402],
+    [0.444417318, 0.172620940, 0.018266308],
+])
+
+
+def test_a_face_axis_meets_a_body_not_centrally_symmetric_on_its_face_side_only():
+    """A face axis is a face's normal up to sign. Two scan-like grains overlapping by 1.932e-4 d
+    across crossed edges, along which the lower grain's face axis is within eps_f of the best
+    separation, but with the sign that points away from that face: the lower grain has no face
+    there, and the face nearest that direction is 13 degrees off. Clipped on it, the manifold
+    had a point 0.012 d outside the lower grain at a gap of -7e-8 d. The face axis now gives no
+    manifold on the side without the face: the crossing of the edges, at the exact depth, and
+    every point within half its gap of both grains."""
+    shapes, positions, quaternions = [], [], []
+    for vertices in (_OTHER_SIDE_LOWER, _OTHER_SIDE_UPPER):
+        shape = ConvexPolyhedron(vertices + X0)
+        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
+        shapes.append(shape)
+        positions.append(shape.input_centroid)
+        quaternions.append([w, x, y, z])
+    state = make_state(shapes, [0, 1], positions, quaternions)
+    depth, _ = exact_gap(_OTHER_SIDE_LOWER, _OTHER_SIDE_UPPER)
+    assert depth == pytest.approx(-1.932e-4, abs=1e-7)
+    m = pair_manifold(Detector().detect(state, 0.02))
+    assert m["gaps"].min() == pytest.approx(depth, abs=1e-9)
+    for point, gap in zip(m["points"], m["gaps"]):
+        for vertices in (_OTHER_SIDE_LOWER, _OTHER_SIDE_UPPER):
+            assert point_hull_distance(point, vertices + X0) <= 0.5 * abs(gap) + 1e-9
+
+
 @pytest.mark.parametrize("shape", [Sphere(1.0), Pinacoid.from_size(1.0, 1, 1)], ids=["spheres", "pinacoids"])
 def test_per_body_reach_keeps_slow_pairs_at_the_base_alert_distance(shape):
     """A fast grain raises the alert distance of its own pairs only: with ``reach`` the slow pair

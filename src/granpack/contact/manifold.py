@@ -16,6 +16,11 @@ from granpack.contact.separating_axes import _interval
 
 __all__: list[str] = []
 
+#: cosine between ``n`` and the reference face's normal below which :func:`_clip_face` finds no
+#: face: a face axis is one face's normal up to sign, and on a body that is not centrally
+#: symmetric the other sign meets the body at a vertex or an edge, not at a face
+_FACE_COS = 1.0 - 1e-9
+
 
 @jit(inline="always")
 def _incident_face(rvi, inc_v0, inc_v1, inc_f0, inc_f1, inc_fn, fvs, fverts, face_row_inc, nx, ny, nz, band, heights):
@@ -81,6 +86,8 @@ def _clip_face(rv, ref_v0, ref_v1, rox, roy, roz, ref_f0, ref_f1, inc_v0, inc_v1
         d = fn[f, 0] * nx + fn[f, 1] * ny + fn[f, 2] * nz
         if d > best:
             best, fr = d, f
+    if best < _FACE_COS:
+        return 0, math.inf  # n is a face axis of the other side of the body: no face here
     fi = _incident_face(rv, inc_v0, inc_v1, inc_f0, inc_f1, fn, fvs, fverts, face_row_inc, nx, ny, nz, band,
                         heights)
     _, delta = _interval(rv, ref_v0, ref_v1, rox, roy, roz, nx, ny, nz)
