@@ -1073,6 +1073,19 @@ def test_previous_axis_is_kept_within_five_bands_and_left_beyond(eps_f, kept):
         assert abs(m["normal"] @ face_normal) < 0.99995 and m["ctype"] == SIMPLE and len(m["gaps"]) == 1
 
 
+def _grains_placed(*world: np.ndarray) -> ParticleState:
+    """Grains given by their world vertices (d), each at its centroid with the orientation that
+    puts its body frame there: a pair of a settled pile rebuilt from its vertices."""
+    shapes, positions, quaternions = [], [], []
+    for vertices in world:
+        shape = ConvexPolyhedron(vertices)
+        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
+        shapes.append(shape)
+        positions.append(shape.input_centroid)
+        quaternions.append([w, x, y, z])
+    return make_state(shapes, list(range(len(world))), positions, quaternions)
+
+
 # the scan pile's pair whose kept face axis put a point beside the face, outside the other grain
 _KEPT_AXIS_LOWER = np.array([
     [0.152668942, 0.280082552, -0.374653412],
@@ -1137,14 +1150,7 @@ def test_a_face_axis_kept_by_the_hysteresis_puts_every_point_where_the_grains_me
     that vertex (a force where the grains do not touch, while the vertex that is truly deepest had
     no point and sank step after step); it must be the point where the grains are 1.804e-3 d deep,
     and every point must lie within half its gap of both grains."""
-    shapes, positions, quaternions = [], [], []
-    for vertices in (_KEPT_AXIS_LOWER, _KEPT_AXIS_UPPER):
-        shape = ConvexPolyhedron(vertices + X0)
-        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
-        shapes.append(shape)
-        positions.append(shape.input_centroid)
-        quaternions.append([w, x, y, z])
-    state = make_state(shapes, [0, 1], positions, quaternions)
+    state = _grains_placed(_KEPT_AXIS_LOWER + X0, _KEPT_AXIS_UPPER + X0)
     fresh = Detector().detect(state, 0.02)
     depth = -pair_manifold(fresh)["gaps"].min()
     assert depth == pytest.approx(1.804e-3, abs=1e-6)
@@ -1222,14 +1228,7 @@ def test_a_face_axis_kept_by_the_hysteresis_gives_no_overlap_between_separated_g
     to 0.03 d outside the lower grain: forces between grains that do not touch. A separated
     pair's smallest gap cannot be below the best separation, so such a manifold is left for the
     next axis: the manifold is the crossing of the edges, at the exact distance."""
-    shapes, positions, quaternions = [], [], []
-    for vertices in (_SEPARATED_LOWER, _SEPARATED_UPPER):
-        shape = ConvexPolyhedron(vertices + X0)
-        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
-        shapes.append(shape)
-        positions.append(shape.input_centroid)
-        quaternions.append([w, x, y, z])
-    state = make_state(shapes, [0, 1], positions, quaternions)
+    state = _grains_placed(_SEPARATED_LOWER + X0, _SEPARATED_UPPER + X0)
     distance, _ = exact_gap(_SEPARATED_LOWER, _SEPARATED_UPPER)
     assert distance == pytest.approx(1.816e-3, abs=1e-6)
     fresh = Detector().detect(state, 0.02)
@@ -1305,14 +1304,7 @@ def test_a_face_axis_meets_a_body_not_centrally_symmetric_on_its_face_side_only(
     had a point 0.012 d outside the lower grain at a gap of -7e-8 d. The face axis now gives no
     manifold on the side without the face: the crossing of the edges, at the exact depth, and
     every point within half its gap of both grains."""
-    shapes, positions, quaternions = [], [], []
-    for vertices in (_OTHER_SIDE_LOWER, _OTHER_SIDE_UPPER):
-        shape = ConvexPolyhedron(vertices + X0)
-        x, y, z, w = Rotation.from_matrix(shape.rotation.T).as_quat()
-        shapes.append(shape)
-        positions.append(shape.input_centroid)
-        quaternions.append([w, x, y, z])
-    state = make_state(shapes, [0, 1], positions, quaternions)
+    state = _grains_placed(_OTHER_SIDE_LOWER + X0, _OTHER_SIDE_UPPER + X0)
     depth, _ = exact_gap(_OTHER_SIDE_LOWER, _OTHER_SIDE_UPPER)
     assert depth == pytest.approx(-1.932e-4, abs=1e-7)
     m = pair_manifold(Detector().detect(state, 0.02))
