@@ -630,8 +630,8 @@ class OverlapConfig(_Model):
     recovery_near_rest: bool = _setting(
         True, description="Whether that recovery still pushes once the pile is near rest (kinetic criterion "
         "below solver.tolerance_below): true, every run's rule so far; false stops it there, the projection "
-        "(projection_slop) left as the backstop. Piles of scanned grains rest with false: their many-point "
-        "face contacts hold overlaps the recovery pushes against step after step.")
+        "(projection_slop) left as the backstop, the overlaps then growing towards it; the piles measured rest no "
+        "sooner with false, and bidisperse pinacoids much later.")
     rest_recovery_slop: _Number = _setting(
         5e-5, "d", ge=0, description="With `rest_recovery_speed` > 0: when the pile first meets the criteria "
         "with a deeper overlap, the overlaps deeper than this are pushed back too, at most at "
