@@ -1241,7 +1241,7 @@ def test_a_face_axis_kept_by_the_hysteresis_gives_no_overlap_between_separated_g
             assert point_hull_distance(point, vertices + X0) <= 0.5 * abs(gap) + 1e-9
 
 
-# the scan pile's pair whose face axis of the wrong sign was clipped on a face 13 degrees off
+# the scan pile's pair whose face axis of the wrong sign was clipped on a face 5.7 degrees off
 _OTHER_SIDE_LOWER = np.array([
     [0.241490706, 0.275143242, -0.624101941],
     [0.278881860, 0.062776184, -0.767182588],
@@ -1300,7 +1300,7 @@ def test_a_face_axis_meets_a_body_not_centrally_symmetric_on_its_face_side_only(
     """A face axis is a face's normal up to sign. Two scan-like grains overlapping by 1.932e-4 d
     across crossed edges, along which the lower grain's face axis is within eps_f of the best
     separation, but with the sign that points away from that face: the lower grain has no face
-    there, and the face nearest that direction is 13 degrees off. Clipped on it, the manifold
+    there, and the face nearest that direction is 5.7 degrees off. Clipped on it, the manifold
     had a point 0.012 d outside the lower grain at a gap of -7e-8 d. The face axis now gives no
     manifold on the side without the face: the crossing of the edges, at the exact depth, and
     every point within half its gap of both grains."""
