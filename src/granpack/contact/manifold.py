@@ -388,8 +388,8 @@ def _clamp_gaps(gp, cnt, floor):
 
 
 @jit
-def _deepest_feature(rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax, ea0, ea1, eb0, eb1,
-                     edges, X, h, pts, gp):
+def _deepest_feature(rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax, ea0, ea1, eb0,
+                     eb1, edges, X, h, pts, gp):
     """The point where the best separating axis finds the bodies deepest, in ``pts[0]``, ``gp[0]``
     (frame and units as :func:`_gjk_manifold`): the other body's support vertex below the best face
     axis's face (``sfa``: A's face, normal ``gfa ax[kfa]``; ``sfb``: B's), or the crossing of the
@@ -408,8 +408,8 @@ def _deepest_feature(rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb
     if sfa >= sfb:
         return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, gfa * ax[kfa, 0], gfa * ax[kfa, 1], gfa * ax[kfa, 2], sfa,
                               False, 0.0, pts, gp)
-    return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2], sfb, True,
-                          0.0, pts, gp)
+    return _deepest_point(rv, a0, a1, b0, b1, ox, oy, oz, gfb * ax[kfb, 0], gfb * ax[kfb, 1], gfb * ax[kfb, 2], sfb,
+                          True, 0.0, pts, gp)
 
 
 @jit(inline="always")

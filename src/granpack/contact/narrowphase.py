@@ -221,22 +221,18 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
             if cnt == 0:
                 continue
             if sigma <= 0.0 and sk < sigma:
-                # interpenetration, this face axis kept by the hysteresis though another is better:
-                # along it the bodies seem to overlap by up to _KEEP_BAND eps_f more than their
-                # penetration depth -sigma (a vertex below the face's plane but beside the face, maybe
-                # outside the other body), so no point is given a gap below sigma, and the point
-                # where they are that deep is the best axis's deepest feature, not this axis's
+                # interpenetration on a face axis the hysteresis kept over a better one (module
+                # docstring): no gap below sigma, the point at that depth the best axis's deepest feature
                 _clamp_gaps(gp, cnt, sigma)
                 if cnt < pts.shape[0] and _deepest_feature(
-                        rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax, edge_start[ka],
-                        edge_start[ka + 1], edge_start[kb], edge_start[kb + 1], edges, X, h, pts[cnt:], gp[cnt:]) == 1 \
-                        and _apart(pts, cnt, eps_f):
+                        rv, a0, a1, b0, b1, ox, oy, oz, sfa, sfb, se, gfa, kfa, gfb, kfb, ex, ey, ez, ax,
+                        edge_start[ka], edge_start[ka + 1], edge_start[kb], edge_start[kb + 1], edges, X, h,
+                        pts[cnt:], gp[cnt:]) == 1 and _apart(pts, cnt, eps_f):
                     cnt += 1
                 return cnt, nx, ny, nz
             if sigma > 0.0 and gmin < sigma - tol_x:
-                # separated, and a gap below the best separation, which bounds the distance from
-                # below: the clipped points are not pairs of surface points (a face axis the
-                # hysteresis kept, another axis separating the bodies); not a manifold
+                # separated, a gap below the best separation (a lower bound of the distance): the
+                # points are not pairs of surface points (a kept face axis, another axis separating)
                 continue
             if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
                 # the smallest gap is the axis separation, or, separated, the best separation of
