@@ -1224,10 +1224,10 @@ _SEPARATED_PREVIOUS_NORMAL = np.array([np.float64(0.052761017093588214), np.floa
 def test_a_face_axis_kept_by_the_hysteresis_gives_no_overlap_between_separated_grains():
     """Two scan-like grains 1.816e-3 d apart across crossed edges; the previous normal is a face of
     the lower grain 4.6 degrees away, along which their shadows overlap by 2.5e-4 d, within the
-    hysteresis's band. Clipped on that face, the manifold gave points 1.2e-4 and 2.1e-4 d deep, up
-    to 0.03 d outside the lower grain: forces between grains that do not touch. A separated
-    pair's smallest gap cannot be below the best separation, so such a manifold is left for the
-    next axis: the manifold is the crossing of the edges, at the exact distance."""
+    hysteresis's band. That axis's sign points away from the lower grain's face: clipped on the
+    nearest face, the manifold gave points 1.2e-4 and 2.1e-4 d deep, up to 0.03 d outside the
+    lower grain, forces between grains that do not touch. The axis gives no face manifold on that
+    side, and the manifold is the crossing of the edges, at the exact distance."""
     state = _grains_placed(_SEPARATED_LOWER + X0, _SEPARATED_UPPER + X0)
     distance, _ = exact_gap(_SEPARATED_LOWER, _SEPARATED_UPPER)
     assert distance == pytest.approx(1.816e-3, abs=1e-6)

@@ -28,9 +28,13 @@ Pair kinds (docs/method/contact-detection.md):
 
 Gaps are exact. A separated pair's manifold is accepted when its smallest gap equals its axis's
 separation or the best separation of all axes (a lower bound of the distance, which the gap, a
-distance between two surface points, bounds from above: both are then the distance); otherwise
-(vertex-vertex, vertex-edge, parallel edges) the distance and closest points come from GJK. For
-an interpenetrating pair the smallest gap is minus the penetration depth, the best
+distance between two surface points, bounds from above: both are then the distance). No gap of
+a separated face manifold is below the best separation: a clipped point is a point of the
+incident body within the reference face's side planes, so its gap, its height over that face, is
+at least the distance. That needs the reference face to be the one whose outward normal is the
+axis; a face axis whose sign points away from every face of its body gives no face manifold.
+When neither gap matches (vertex-vertex, vertex-edge, parallel edges) the distance and closest
+points come from GJK. For an interpenetrating pair the smallest gap is minus the penetration depth, the best
 separating-axis value ``σ <= 0``, and no point's gap is set below ``σ`` even when the hysteresis
 keeps another axis: along such an axis the bodies seem to overlap by up to ``_KEEP_BAND eps_f``
 more, and the position correction would chase those phantom overlaps. For the same reason the
@@ -230,10 +234,6 @@ def poly_poly(a, b, ox, oy, oz, hx, hy, hz, sat, geo, tab, alert, eps_f, scr, pt
                         pts[cnt:], gp[cnt:]) == 1 and _apart(pts, cnt, eps_f):
                     cnt += 1
                 return cnt, nx, ny, nz
-            if sigma > 0.0 and gmin < sigma - tol_x:
-                # separated, a gap below the best separation (a lower bound of the distance): the
-                # points are not pairs of surface points (a kept face axis, another axis separating)
-                continue
             if abs(gmin - sk) <= tol_x or (sigma > 0.0 and gmin - sigma <= tol_x):
                 # the smallest gap is the axis separation, or, separated, the best separation of
                 # every axis (a lower bound of the distance that a pair of surface points meets)
