@@ -597,7 +597,9 @@ class SolverConfig(_Model):
     restitution: _Number = _setting(0.0, ge=0, le=1, description="Normal restitution coefficient e_N, in [0, 1].")
     tolerance: _Number = _setting(1e-4, gt=0, description="NLGS convergence tolerance (LMGC90's 'Quad' norm) "
                                   "near rest. Rule of thumb: at most 1e-3, or the equilibrium criteria are "
-                                  "not met.")
+                                  "not met; 1e-5 for a pile that keeps missing the force criterion near rest "
+                                  "while its grains hardly move (a tall graded column of scans sank into its "
+                                  "overlaps with 1e-4: docs, design notes).")
     settling_tolerance: _Number = _setting(
         1e-3, gt=0, description="NLGS tolerance while the pile is far from rest (kinetic criterion above "
         "`tolerance_below`); the run then switches to `tolerance` for good.")
