@@ -34,12 +34,13 @@ incident body within the reference face's side planes, so its gap, its height ov
 at least the distance. That needs the reference face to be the one whose outward normal is the
 axis; a face axis whose sign points away from every face of its body gives no face manifold.
 When neither gap matches (vertex-vertex, vertex-edge, parallel edges) the distance and closest
-points come from GJK. For an interpenetrating pair the smallest gap is minus the penetration depth, the best
-separating-axis value ``σ <= 0``, and no point's gap is set below ``σ`` even when the hysteresis
-keeps another axis: along such an axis the bodies seem to overlap by up to ``_KEEP_BAND eps_f``
-more, and the position correction would chase those phantom overlaps. For the same reason the
-point such a manifold adds at the depth is the best axis's deepest feature, not the kept axis's
-deepest vertex, which may lie beside the reference face, outside the other body.
+points come from GJK. For an interpenetrating pair the smallest gap is minus the penetration
+depth, the best separating-axis value ``σ <= 0``, and no point's gap is set below ``σ`` even when
+the hysteresis keeps another axis: along such an axis the bodies seem to overlap by up to
+``_KEEP_BAND eps_f`` more, and the position correction would chase those phantom overlaps. For
+the same reason the point such a manifold adds at the depth is the best axis's deepest feature,
+not the kept axis's deepest vertex, which may lie beside the reference face, outside the other
+body.
 
 Why every vertex: keeping four points of a clipped polygon (a common reduction) leaves the
 others unconstrained, and a grain rocking about the kept ones slowly sinks them into its
