@@ -409,13 +409,25 @@ def test_resume_of_a_finished_run_leaves_it(finished, capsys):
 def test_resume_of_a_finished_run_of_other_settings_names_them(finished, tmp_path, capsys):
     config, out, _ = finished
     other = tmp_path / "longer.toml"
-    other.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 2.0"))
+    other.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 2.0").replace("seed = 3", "seed = 4"))
     before = _snapshot(out)
     code, _, err = run_main(["run", str(other), "--out", str(out), "--resume"], capsys)
     line = _one_error_line(err)
     assert code == 2 and "holds a finished run of another config" in line
+    assert f"seed = 3 in {out / 'config.toml'}, 4 in {other}" in line
     assert f"equilibrium.max_time = 1.0 in {out / 'config.toml'}, 2.0 in {other}" in line
     assert _snapshot(out) == before
+
+
+def test_resume_with_a_later_cap_takes_a_run_that_ended_not_at_rest_further(finished, tmp_path, capsys):
+    _, out, _ = finished
+    copy = tmp_path / "run"
+    shutil.copytree(out, copy)
+    longer = tmp_path / "longer.toml"
+    longer.write_text(TINY_RUN.replace("max_time = 1.0", "max_time = 1.5"))
+    code, stdout, err = run_main(["run", str(longer), "--out", str(copy), "--resume"], capsys)
+    assert code == 0 and "going on from its final state" in err and "max_time = 1.5 (was 1)" in err, err
+    assert stdout.startswith("not at rest after 1.50 sqrt(d/g)"), stdout
 
 
 def test_resume_and_overwrite_exclude_each_other(finished, capsys):

@@ -260,6 +260,92 @@ def test_killed_run_resumes_to_the_same_packing(tmp_path, monkeypatch):
     assert run_packing(config, out, resume=True, progress=False) == read_json(out / "summary.json")
 
 
+def _timeline(folder):
+    """The rows of a run's timeline.csv, clocks aside."""
+    import csv
+
+    with (folder / simulation.TIMELINE_FILE).open(newline="") as f:
+        return [{k: v for k, v in row.items() if k not in ("wall_seconds", "cpu_seconds")} for row in csv.DictReader(f)]
+
+
+def test_a_run_that_ended_not_at_rest_goes_on_to_the_longer_runs_packing(tmp_path, capsys):
+    """40 spheres run to t = 1 end not at rest; resumed with ``equilibrium.max_time = 2`` they go
+    on from their final state to the packing of a run made to t = 2 at once, bit for bit, with its
+    timeline and solver figures; the analysis of the state at t = 1 is removed."""
+    whole = run_packing(sphere_config(n=40, max_time=2.0), tmp_path / "whole", progress=False)
+    out = tmp_path / "short"
+    short = run_packing(sphere_config(n=40, max_time=1.0), out, progress=False)
+    assert short["status"] == STATUS_NOT_AT_REST and short["steps"] < whole["steps"]
+    analyze_run(out)
+    assert (out / "analysis.json").is_file()
+
+    longer = run_packing(sphere_config(n=40, max_time=2.0), out, resume=True, progress=True)
+    err = capsys.readouterr().err
+    assert "going on from its final state" in err and "removed final.gsd, summary.json, analysis.json" in err
+    assert "with equilibrium.max_time = 2 (was 1)" in err
+    a, b = read_packing(tmp_path / "whole" / "final.gsd"), read_packing(out / "final.gsd")
+    for name in ("position", "quaternion", "velocity", "omega"):
+        np.testing.assert_array_equal(getattr(a.state, name), getattr(b.state, name))
+    np.testing.assert_array_equal(a.contacts.impulse, b.contacts.impulse)
+    assert longer["steps"] == whole["steps"] and longer["nlgs"] == whole["nlgs"]
+    assert _timeline(out) == _timeline(tmp_path / "whole")
+    assert not (out / "analysis.json").exists() and not (out / "checkpoint.gsd").exists()
+    assert load_config(out / "config.toml").equilibrium.max_time == 2.0
+
+
+def test_a_run_goes_on_only_where_it_ended_short_of_rest_and_the_cap_is_raised(settled, tmp_path, capsys):
+    """Refused in one line, the folder untouched: a run at rest given a later cap; a run that ended
+    not at rest given only a finer tolerance (its cap not beyond its end), or another setting
+    beside a raised cap, or whose final state was written without the run's record."""
+    import shutil
+
+    from granpack.io.gsd import write_packing
+
+    config, summary, folder = settled
+    rested = tmp_path / "rested"
+    shutil.copytree(folder, rested)
+    short = tmp_path / "short"
+    run_packing(sphere_config(n=20, max_time=0.5), short, progress=False)
+    old = tmp_path / "old"
+    shutil.copytree(short, old)
+    saved = read_packing(old / "final.gsd")
+    write_packing(old / "final.gsd", replace(saved, metadata={k: v for k, v in saved.metadata.items() if k != "counters"}))
+
+    def refused(folder, given, *expected):
+        path = _write(tmp_path / "given.toml", given)
+        before = {p.name: p.read_bytes() for p in folder.iterdir()}
+        with pytest.raises(SystemExit) as info:
+            main(["run", str(path), "--out", str(folder), "--resume"])
+        err = capsys.readouterr().err
+        assert info.value.code == 2 and err.count("\n") == 1 and err.startswith("error: "), err
+        for text in expected:
+            assert text in err, err
+        assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
+
+    refused(rested, config.model_copy(update={"equilibrium": config.equilibrium.model_copy(update={"max_time": 60.0})}),
+            "holds a run that came to rest at t = ", "equilibrium.max_time = 60 (was 30)")
+    finer = sphere_config(n=20, max_time=0.5)
+    refused(short, finer.model_copy(update={"solver": finer.solver.model_copy(update={"tolerance": 1e-5})}),
+            "equilibrium.max_time = 0.5: the run in", "ended not at rest at t = 0.5 sqrt(d/g); set it beyond")
+    refused(short, sphere_config(n=20, max_time=1.0, seed=4), "holds a finished run of another config",
+            "seed = 3 in")
+    refused(old, sphere_config(n=20, max_time=1.0), "holds no run record to go on from")
+
+
+def test_a_checkpoint_resumes_with_a_finer_tolerance(tmp_path, monkeypatch, capsys):
+    """A killed run resumed with ``solver.tolerance = 1e-5`` goes on from its checkpoint under it
+    and says so; its resolved config is the one given."""
+    config = sphere_config(n=20, max_time=1.0)
+    killed_run(config, tmp_path, monkeypatch, at_solve=150)
+    finer = config.model_copy(update={"solver": config.solver.model_copy(update={"tolerance": 1e-5})})
+    capsys.readouterr()
+    summary = run_packing(finer, tmp_path, resume=True)
+    err = capsys.readouterr().err
+    assert "resuming from t = 0.5 sqrt(d/g) (step 100)" in err and "with solver.tolerance = 1e-05 (was 0.0001)" in err
+    assert load_config(tmp_path / "config.toml").solver.tolerance == 1e-5
+    assert summary["simulated_time"] == pytest.approx(1.0)
+
+
 def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_path, monkeypatch):
     """A checkpoint whose timeline rows lack ``potential_energy_change`` (and its running total)
     resumes: those rows, and the first row after them, get NaN for it; later rows have it."""

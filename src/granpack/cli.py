@@ -418,7 +418,8 @@ def _protect_input(config_path: Path, out: Path, resolved_text: str) -> None:
 def run(
     config: Path = typer.Argument(..., metavar="CONFIG", help="Run config (TOML)."),
     out: Path = typer.Option(..., "--out", help="Output folder."),
-    resume: bool = typer.Option(False, "--resume", help="Continue the run in OUT from its checkpoint."),
+    resume: bool = typer.Option(False, "--resume", help="Continue the run in OUT from its checkpoint, or from its "
+                                "final state if it ended not at rest and CONFIG raises equilibrium.max_time."),
     overwrite: bool = typer.Option(False, "--overwrite",
                                    help="Replace the run that OUT holds (its analysis, figures and exports too)."),
     seed: Optional[int] = typer.Option(None, "--seed", help="Override the config's seed."),
@@ -427,7 +428,8 @@ def run(
     """One packing to equilibrium: writes OUT/config.toml, final.gsd, summary.json (and checkpoints).
 
     A folder that holds a run is refused unless --resume (continue it; a finished run is left as
-    it is) or --overwrite (replace it) is given. Ctrl-C stops at the end of the step and writes
+    it is, or goes on if it ended not at rest and CONFIG raises equilibrium.max_time; a run may
+    change solver.tolerance on the way) or --overwrite (replace it) is given. Ctrl-C stops at the end of the step and writes
     the checkpoint (exit status 130).
     """
     from granpack.config import load_config

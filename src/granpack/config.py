@@ -46,6 +46,7 @@ __all__ = [
     "AUTO_ALERT_FRACTION",
     "SHARE_TOLERANCE",
     "SETTING_TABLES",
+    "CONTINUABLE_SETTINGS",
     "MOVED_SOLVER_KEYS",
     "PopulationConfig",
     "GradingConfig",
@@ -599,7 +600,8 @@ class SolverConfig(_Model):
                                   "near rest. Rule of thumb: at most 1e-3, or the equilibrium criteria are "
                                   "not met; 1e-5 for a pile that keeps missing the force criterion near rest "
                                   "while its grains hardly move (a tall graded column of scans sank into its "
-                                  "overlaps with 1e-4: docs, design notes).")
+                                  "overlaps with 1e-4: docs, design notes). May be changed for a run that goes on "
+                                  "(granpack run --resume).")
     settling_tolerance: _Number = _setting(
         1e-3, gt=0, description="NLGS tolerance while the pile is far from rest (kinetic criterion above "
         "`tolerance_below`); the run then switches to `tolerance` for good.")
@@ -718,6 +720,11 @@ class ContainerConfig(_Model):
 SETTING_TABLES = ("container", "time_stepping", "solver", "overlap", "end_game", "threads", "equilibrium", "deposit",
                   "output")
 
+#: the settings a run may go on under with other values (``granpack run --resume``, from its
+#: checkpoint or from the final state of a run that ended not at rest): how long it may run and how
+#: finely its later steps are solved change nothing it has already done, so the run stays one run
+CONTINUABLE_SETTINGS = ("equilibrium.max_time", "solver.tolerance")
+
 #: keys of the flat ``[solver]`` table of granpack 0.1.0 and where they now live, ``(table, key)``
 MOVED_SOLVER_KEYS = {
     "time_step": ("time_stepping", "time_step"),
@@ -750,7 +757,8 @@ class EquilibriumConfig(_Model):
 
     max_time: _Number = _setting(
         300.0, "sqrt(d/g)", gt=0, description="Simulated time after which the run stops unsettled. Rule of "
-        "thumb: piles of some thousand grains rest at t = 50 to 250, wider and flatter ones later.")
+        "thumb: piles of some thousand grains rest at t = 50 to 250, wider and flatter ones later. Raised, "
+        "granpack run --resume takes a run that ended not at rest further.")
     force_tolerance: _Number = _setting(1e-4, "d_p^2 P", gt=0, description="Bound on every grain's net force |F_p|.")
     torque_tolerance: _Number = _setting(1e-4, "d_p^3 P", gt=0, description="Bound on every grain's net torque |T_p|.")
     kinetic_tolerance: _Number = _setting(1e-8, "d^3 P", gt=0, description="Bound on the kinetic energy per grain.")

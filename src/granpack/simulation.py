@@ -24,7 +24,10 @@ grows frame by frame and is cut back to the checkpoint on resume): ``config.toml
 ``timeline.csv`` (one row per equilibrium check: :data:`~granpack.run_record.TIMELINE_COLUMNS`).
 A killed run resumed with ``resume=True`` continues from its checkpoint and ends with the same
 packing, bit for bit, as an uninterrupted run: the checkpoint holds the exact double-precision
-state, the contacts that warm-start the next step, and the run's record.
+state, the contacts that warm-start the next step, and the run's record. ``final.gsd`` holds them
+too, so that a run that ended not at rest goes on from it, resumed with ``equilibrium.max_time``
+raised, as far as the longer run would have gone; resumed, a run may also change
+``solver.tolerance`` (:data:`~granpack.config.CONTINUABLE_SETTINGS`).
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ import numpy as np
 
 from granpack.advice import advise
 from granpack.box import Box
-from granpack.config import RunConfig
+from granpack.config import CONTINUABLE_SETTINGS, RunConfig
 from granpack.contact import ContactSet
 from granpack.deposit import deposit
 from granpack.errors import InputError, RunInterrupted
@@ -51,12 +54,15 @@ from granpack.io.run_folder import (
     CHECKPOINT_FILE,
     CONFIG_FILE,
     CONTAINER_FILE,
+    DERIVED_FILES,
     FINAL_FILE,
     PROGRESS_FILE,
     SUMMARY_FILE,
     TIMELINE_FILE,
     TRAJECTORY_FILE,
+    changed_settings,
     claim_folder,
+    clear_run,
     config_differences,
 )
 from granpack.mixture import Mixture
@@ -108,19 +114,30 @@ def initial_state(config: RunConfig, progress: bool = False,
     return state, mixture
 
 
-def _same_config(saved_text: str | None, config: RunConfig) -> bool:
-    """Whether a checkpoint's resolved config is ``config``: the same settings, whatever the
-    comments of the version that wrote it (the descriptions of the keys)."""
-    if saved_text == config.to_toml():
-        return True
+def _as_today(saved_text: str | None) -> str:
+    """A run's saved resolved config written as today's (an older layout of the same settings, or
+    other comments), or as it is when it does not load."""
     import tomllib
 
     from granpack.config import load_config_dict
 
     try:
-        return load_config_dict(tomllib.loads(saved_text or "")) == config
+        return load_config_dict(tomllib.loads(saved_text or "")).to_toml()
     except (InputError, tomllib.TOMLDecodeError):
-        return False
+        return saved_text or ""
+
+
+def continued_settings(saved_text: str | None, config: RunConfig) -> dict[str, tuple] | None:
+    """The settings of :data:`~granpack.config.CONTINUABLE_SETTINGS` in which ``config`` differs
+    from a run's saved config, ``{key: (saved, given)}`` (empty: the same settings); None when any
+    other setting differs, so that the run cannot go on under ``config``."""
+    changed = changed_settings(_as_today(saved_text), config.to_toml())
+    return changed if set(changed) <= set(CONTINUABLE_SETTINGS) else None
+
+
+def _changes(changed: dict[str, tuple]) -> str:
+    """``equilibrium.max_time = 400 (was 300), ...``"""
+    return ", ".join(f"{key} = {new:g} (was {old:g})" for key, (old, new) in changed.items())
 
 
 def saved_state(saved: ParticleState, config: RunConfig, mixture: Mixture) -> ParticleState:
@@ -134,35 +151,64 @@ def saved_state(saved: ParticleState, config: RunConfig, mixture: Mixture) -> Pa
                          omega=saved.omega, time=saved.time)
 
 
-def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture,
-                 source: str | None = None) -> tuple[ParticleState, ContactSet, RunRecord] | None:
-    """State, warm contacts and record of the checkpoint in ``out_dir``, or None if there is none;
-    a checkpoint of other settings is refused, naming them (``source``: where ``config`` came from)."""
+def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture, source: str | None = None
+                 ) -> tuple[ParticleState, ContactSet, RunRecord, dict[str, tuple]] | None:
+    """State, warm contacts and record of the checkpoint in ``out_dir``, and the settings it goes on
+    under with other values (:func:`continued_settings`), or None if there is none; a checkpoint of
+    other settings is refused, naming them (``source``: where ``config`` came from)."""
     path = out_dir / CHECKPOINT_FILE
     if not path.is_file():
         return None
     saved = read_packing(path)
     meta = saved.metadata
-    if not _same_config(meta.get("config"), config):
-        import tomllib
-
-        from granpack.config import load_config_dict
-
-        saved_text = meta.get("config") or ""
-        try:  # an older layout of the same settings, written as today's
-            saved_text = load_config_dict(tomllib.loads(saved_text)).to_toml()
-        except (InputError, tomllib.TOMLDecodeError):
-            pass
-        differences = config_differences(saved_text, config.to_toml(), f"the checkpoint (and {out_dir / CONFIG_FILE})",
-                                         source or "the config given")
+    changed = continued_settings(meta.get("config"), config)
+    if changed is None:
+        differences = config_differences(_as_today(meta.get("config")), config.to_toml(),
+                                         f"the checkpoint (and {out_dir / CONFIG_FILE})", source or "the config given")
         raise InputError(f"{path}: made with other settings than the config given: {differences}; resume with "
-                         f"{out_dir / CONFIG_FILE} (or those settings), or replace the run with --overwrite")
+                         f"{out_dir / CONFIG_FILE} (or those settings, {' and '.join(CONTINUABLE_SETTINGS)} aside), "
+                         "or replace the run with --overwrite")
     state = saved_state(saved.state, config, mixture)
     try:
         record = RunRecord.from_dict(meta["counters"])
     except (KeyError, TypeError) as exc:
         raise InputError(f"{path}: not a checkpoint this version reads ({exc}); replace the run with --overwrite") from None
-    return state, saved.contacts, record
+    return state, saved.contacts, record, changed
+
+
+def _go_on_from_final(out_dir: Path, config: RunConfig, note: Notes) -> None:
+    """Take further a run of ``out_dir`` that ended not at rest, when ``config`` differs from its
+    own only in :data:`~granpack.config.CONTINUABLE_SETTINGS`: its final state (which carries the
+    run's record) becomes its checkpoint, and its summary and what was made from its final state
+    (:data:`~granpack.io.run_folder.DERIVED_FILES`, figures, exports) go; touches nothing when
+    ``out_dir`` holds no such run (:func:`~granpack.io.run_folder.claim_folder` then judges it).
+
+    Raises:
+        InputError: the run came to rest; ``equilibrium.max_time`` is not beyond its end; its
+            final state holds no record (written by an older granpack).
+    """
+    final, summary_path = out_dir / FINAL_FILE, out_dir / SUMMARY_FILE
+    if not (final.is_file() and summary_path.is_file()) or (out_dir / CHECKPOINT_FILE).is_file():
+        return
+    meta = read_packing(final).metadata
+    changed = continued_settings(meta.get("config"), config)
+    if not changed:
+        return
+    summary = read_json(summary_path)
+    end = float(meta.get("time", summary.get("simulated_time", math.nan)))
+    if summary.get("status") != STATUS_NOT_AT_REST:
+        raise InputError(f"{out_dir}: holds a run that came to rest at t = {end:.6g} sqrt(d/g), nothing to go on "
+                         f"with ({_changes(changed)}): --overwrite replaces it, or choose another --out folder")
+    if not config.equilibrium.max_time > end:
+        raise InputError(f"equilibrium.max_time = {config.equilibrium.max_time:g}: the run in {out_dir} ended not at "
+                         f"rest at t = {end:.6g} sqrt(d/g); set it beyond that to take the run further")
+    if "counters" not in meta:
+        raise InputError(f"{final}: holds no run record to go on from (written by an older granpack): replace the "
+                         "run with --overwrite")
+    os.replace(final, out_dir / CHECKPOINT_FILE)
+    removed = clear_run(out_dir, (SUMMARY_FILE, *DERIVED_FILES))
+    note(f"{out_dir} ended not at rest at t = {end:.6g} sqrt(d/g): going on from its final state, now its "
+         f"{CHECKPOINT_FILE}; removed {', '.join([FINAL_FILE, *removed])}")
 
 
 class _Checkpoints:
@@ -203,8 +249,10 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         config: the validated run config.
         out_dir: output folder (created if needed).
         resume: continue from ``out_dir/checkpoint.gsd``; a finished run (``summary.json`` and
-            ``final.gsd``) of the same config is returned as it is; a folder without a run is
-            started afresh.
+            ``final.gsd``) of the same config is returned as it is, one that ended not at rest goes
+            on from ``final.gsd`` when ``config`` raises ``equilibrium.max_time`` beyond its end; a
+            folder without a run is started afresh. ``config`` may differ from the run's own in
+            :data:`~granpack.config.CONTINUABLE_SETTINGS` only.
         overwrite: replace the run that ``out_dir`` holds: its :data:`RUN_FILES` and the
             figures and exports of :data:`RUN_FOLDERS` are removed first (other files stay).
         progress: ``"bar"``: progress bars on stderr; ``"lines"``: a progress line on stderr
@@ -230,7 +278,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         InputError: ``config`` is refused by :func:`granpack.advice.advise` (a grading its grains
             cannot represent), before anything is written; ``out_dir`` cannot be created or is a file; it holds a run and neither
             ``resume`` nor ``overwrite`` is given (or both are); its ``config.toml`` is not a
-            granpack run's; its checkpoint or finished run belongs to another config.
+            granpack run's; its checkpoint or finished run belongs to another config (or, to go
+            on, a run at rest, a cap not raised: :func:`_go_on_from_final`).
         RunInterrupted: Ctrl-C (SIGINT, when running in the main thread) while settling: the run
             stopped at the end of the step and wrote its checkpoint (a second Ctrl-C stops at once,
             keeping the last checkpoint). During the pour Ctrl-C raises KeyboardInterrupt (there is
@@ -243,6 +292,8 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
     config_text = config.to_toml()
     mixture = Mixture.from_config(config)
     advice = advise(config, mixture)  # a refusal raises before the folder is touched
+    if resume and not overwrite:
+        _go_on_from_final(out_dir, config, note)
     if claim_folder(out_dir, config_text, resume=resume, overwrite=overwrite, note=note, source=source):
         return read_json(out_dir / SUMMARY_FILE)
     wall_start = time.perf_counter()
@@ -263,8 +314,9 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
         note(f"poured in {record.clock.deposit_seconds:.0f} s; settling", lines_only=True)
         contacts = None
     else:
-        state, contacts, record = resumed
-        note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {record.milestones.step}) of {out_dir / CHECKPOINT_FILE}")
+        state, contacts, record, changed = resumed
+        note(f"resuming from t = {state.time:.6g} sqrt(d/g) (step {record.milestones.step}) of {out_dir / CHECKPOINT_FILE}"
+             + (f" with {_changes(changed)}" if changed else ""))
         truncate_frames(out_dir / TRAJECTORY_FILE, record.milestones.step)
     record.clock.start(wall_start)
 
@@ -284,12 +336,12 @@ def run_packing(config: RunConfig, out_dir: str | os.PathLike, *, resume: bool =
 
 
 def write_run(out_dir: Path, config: RunConfig, run: Settling, status: str) -> dict:
-    """Write a settled run's files into ``out_dir``: ``final.gsd`` (with the status and the
-    summary's headline), the container's STL for a mould, ``summary.json`` and ``timeline.csv``;
+    """Write a settled run's files into ``out_dir``: ``final.gsd`` (with the status, the
+    summary's headline and the run's record), the container's STL for a mould, ``summary.json`` and ``timeline.csv``;
     returns the summary, whose wall and CPU times (the clock is stamped first) end where the writing starts."""
     run.record.clock.stamp()
     summary = _summary(config, run, status)
-    final = run.packing({"status": status, "summary": headline(summary)})
+    final = run.packing({"status": status, "summary": headline(summary), "counters": run.record.as_dict()})
     write_packing(out_dir / FINAL_FILE, final)
     if not final.box.periodic:
         write_container_stl(out_dir / CONTAINER_FILE, final)

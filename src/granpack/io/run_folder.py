@@ -19,8 +19,8 @@ from granpack.io.gsd import read_packing
 
 __all__ = ["CONFIG_FILE", "CHECKPOINT_FILE", "FINAL_FILE", "CONTAINER_FILE", "SUMMARY_FILE", "TRAJECTORY_FILE",
            "TIMELINE_FILE", "PROGRESS_FILE", "ANALYSIS_FILE", "PICTURE_FILE", "CAMPAIGN_SPEC_FILE", "RUNS_TABLE", "RUNS_PARQUET",
-           "SUMMARY_TABLE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "is_resolved_config", "checkpoint_when",
-           "config_differences", "clear_run", "claim_folder"]
+           "SUMMARY_TABLE", "RUN_FILES", "CAMPAIGN_FILES", "RUN_FOLDERS", "DERIVED_FILES", "is_resolved_config",
+           "checkpoint_when", "config_differences", "changed_settings", "clear_run", "claim_folder"]
 
 CONFIG_FILE = "config.toml"
 CHECKPOINT_FILE = "checkpoint.gsd"
@@ -54,6 +54,8 @@ CAMPAIGN_FILES = (CAMPAIGN_SPEC_FILE, RUNS_TABLE, SUMMARY_TABLE)
 #: sub-folders of a run folder written by ``granpack figures`` and ``granpack export``, and the
 #: suffixes of the files granpack writes there (``overwrite`` removes those, never other files)
 RUN_FOLDERS = {"figures": (".png", ".svg"), "vtk": (".vtu",), "surfaces": (".stl", ".obj", ".ply")}
+#: the files made from a run's final state (with those of :data:`RUN_FOLDERS`): stale once it goes on
+DERIVED_FILES = (ANALYSIS_FILE, PICTURE_FILE)
 
 
 def is_resolved_config(path: Path, config_text: str) -> bool:
@@ -108,13 +110,19 @@ def config_differences(run_text: str, given_text: str, run_name: str, given_name
     def shown(value) -> str:
         return "absent" if value is None else json.dumps(value)
 
-    run, given = _flat_settings(run_text), _flat_settings(given_text)
-    keys = [k for k in dict.fromkeys([*run, *given]) if run.get(k) != given.get(k)]
-    if not keys:
+    changed = changed_settings(run_text, given_text)
+    if not changed:
         return f"the settings of {run_name} and {given_name} are written otherwise"
-    parts = [f"{k} = {shown(run.get(k))} in {run_name}, {shown(given.get(k))} in {given_name}" for k in keys[:limit]]
-    more = f" (and {len(keys) - limit} more setting(s))" if len(keys) > limit else ""
+    parts = [f"{k} = {shown(old)} in {run_name}, {shown(new)} in {given_name}" for k, (old, new) in list(changed.items())[:limit]]
+    more = f" (and {len(changed) - limit} more setting(s))" if len(changed) > limit else ""
     return "; ".join(parts) + more
+
+
+def changed_settings(run_text: str, given_text: str) -> dict[str, tuple]:
+    """The settings in which two resolved configs differ, ``{"equilibrium.max_time": (300.0,
+    400.0), ...}``: the value in ``run_text``, then in ``given_text`` (None where absent)."""
+    run, given = _flat_settings(run_text), _flat_settings(given_text)
+    return {k: (run.get(k), given.get(k)) for k in dict.fromkeys([*run, *given]) if run.get(k) != given.get(k)}
 
 
 def checkpoint_when(path: Path) -> str:
@@ -126,11 +134,12 @@ def checkpoint_when(path: Path) -> str:
         return ""
 
 
-def clear_run(out_dir: Path) -> list[str]:
-    """Remove the run in ``out_dir`` (:data:`RUN_FILES`, granpack's files in :data:`RUN_FOLDERS`);
-    a sub-folder goes too when nothing else is left in it. Returns what was removed."""
+def clear_run(out_dir: Path, files: tuple[str, ...] = RUN_FILES) -> list[str]:
+    """Remove the run in ``out_dir`` (:data:`RUN_FILES`, granpack's files in :data:`RUN_FOLDERS`),
+    or with ``files`` = :data:`DERIVED_FILES` what was made from its final state; a sub-folder goes
+    too when nothing else is left in it. Returns what was removed."""
     removed = []
-    for name in RUN_FILES:
+    for name in files:
         if (out_dir / name).is_file():
             (out_dir / name).unlink()
             removed.append(name)
