@@ -493,6 +493,32 @@ def test_overwrite_lets_an_edited_campaign_replace_its_runs_and_drops_the_stale_
     assert changed_runs(tmp_path, spec.runs) == []
 
 
+def test_a_campaign_with_a_later_cap_takes_its_run_not_at_rest_further(tmp_path):
+    """A run that ended not at rest under a cap of 1 is no changed run for the campaign given a cap
+    of 2: its task goes on from the final state to the packing of a run made to t = 2 at once, bit
+    for bit, and its task record is the new config's; another changed setting is a changed run."""
+    from granpack.campaign.runner import changed_runs, run_task
+    from granpack.campaign.store import task_matches
+    from granpack.io.gsd import read_packing
+    from granpack.io.json import read_json
+    from granpack.simulation import run_packing
+
+    run = campaign_from_dict(_tiny_dict()).runs[0]
+    short, longer, other = (_with_settings(run, {**run.settings, "n_particles": n, "equilibrium": {"max_time": t}})
+                            for n, t in ((40, 1.0), (40, 2.0), (41, 2.0)))
+    out = tmp_path / "out"
+    assert run_task(short, str(out))["status"] == "done"
+    assert read_json(out / short.folder / "summary.json")["status"] == "not at rest"
+    assert changed_runs(out, [longer]) == [] and changed_runs(out, [other]) == [other]
+    result = run_task(longer, str(out))
+    assert result["status"] == "done" and result["action"] == "resumed", result
+    assert task_matches(out / longer.folder, longer) and (out / longer.folder / "analysis.json").is_file()
+    direct = run_packing(longer.config, tmp_path / "direct", progress=False)
+    assert read_json(out / longer.folder / "summary.json")["steps"] == direct["steps"]
+    np.testing.assert_array_equal(read_packing(out / longer.folder / "final.gsd").state.position,
+                                  read_packing(tmp_path / "direct" / "final.gsd").state.position)
+
+
 def test_runs_kept_in_the_flat_solver_layout_of_0_1_0_are_the_same_runs_as_in_todays_layout(tmp_path):
     """A campaign file rewritten from ``[base.solver] time_step`` to ``[base.time_stepping] time_step``
     leaves its finished runs finished; a changed value still counts as another config."""

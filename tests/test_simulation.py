@@ -293,10 +293,29 @@ def test_a_run_that_ended_not_at_rest_goes_on_to_the_longer_runs_packing(tmp_pat
     assert load_config(out / "config.toml").equilibrium.max_time == 2.0
 
 
+def test_a_run_at_rest_given_a_later_cap_is_that_configs_run_too(settled, tmp_path, capsys):
+    """The settled pile came to rest before t = 30: resumed with a cap of 60 it is returned as it
+    is, its config.toml the one given (so that it is the same run from then on), nothing run."""
+    import shutil
+
+    config, summary, folder = settled
+    rested = tmp_path / "rested"
+    shutil.copytree(folder, rested)
+    later = config.model_copy(update={"equilibrium": config.equilibrium.model_copy(update={"max_time": 60.0})})
+    capsys.readouterr()
+    assert run_packing(later, rested, resume=True) == read_json(folder / "summary.json")
+    err = capsys.readouterr().err
+    assert "holds a run that came to rest at t = " in err and "it is this config's run too" in err
+    assert (rested / "config.toml").read_text() == later.to_toml()
+    assert (rested / "final.gsd").read_bytes() == (folder / "final.gsd").read_bytes()
+    assert simulation.carries_on(rested, later) and simulation.carries_on(folder, later)
+
+
 def test_a_run_goes_on_only_where_it_ended_short_of_rest_and_the_cap_is_raised(settled, tmp_path, capsys):
-    """Refused in one line, the folder untouched: a run at rest given a later cap; a run that ended
-    not at rest given only a finer tolerance (its cap not beyond its end), or another setting
-    beside a raised cap, or whose final state was written without the run's record."""
+    """Refused in one line, the folder untouched: a run at rest given a finer tolerance, or a cap
+    before its end; a run that ended not at rest given only a finer tolerance (its cap not beyond
+    its end), or another setting beside a raised cap, or whose final state was written without the
+    run's record."""
     import shutil
 
     from granpack.io.gsd import write_packing
@@ -322,11 +341,18 @@ def test_a_run_goes_on_only_where_it_ended_short_of_rest_and_the_cap_is_raised(s
             assert text in err, err
         assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
 
-    refused(rested, config.model_copy(update={"equilibrium": config.equilibrium.model_copy(update={"max_time": 60.0})}),
-            "holds a run that came to rest at t = ", "equilibrium.max_time = 60 (was 30)")
-    finer = sphere_config(n=20, max_time=0.5)
-    refused(short, finer.model_copy(update={"solver": finer.solver.model_copy(update={"tolerance": 1e-5})}),
+    def finer(config):
+        return config.model_copy(update={"solver": config.solver.model_copy(update={"tolerance": 1e-5})})
+
+    refused(rested, finer(config), "holds a run that came to rest at t = ",
+            "which is not the run of solver.tolerance = 1e-05 (was 0.0001)")
+    end = summary["simulated_time"]
+    refused(rested, config.model_copy(update={"equilibrium": config.equilibrium.model_copy(update={"max_time": end - 1})}),
+            "holds a run that came to rest at t = ", f"which is not the run of equilibrium.max_time = {end - 1:g} (was 30)")
+    refused(short, finer(sphere_config(n=20, max_time=0.5)),
             "equilibrium.max_time = 0.5: the run in", "ended not at rest at t = 0.5 sqrt(d/g); set it beyond")
+    assert not simulation.carries_on(short, finer(sphere_config(n=20, max_time=0.5)))
+    assert simulation.carries_on(short, finer(sphere_config(n=20, max_time=0.75)))
     refused(short, sphere_config(n=20, max_time=1.0, seed=4), "holds a finished run of another config",
             "seed = 3 in")
     refused(old, sphere_config(n=20, max_time=1.0), "holds no run record to go on from")

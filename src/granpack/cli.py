@@ -497,7 +497,9 @@ def campaign(
 ) -> None:
     """A sweep of mixtures x replicas; rerunning skips finished runs and resumes interrupted ones.
 
-    Writes one run folder per (mixture, replica) in OUT, runs.csv, runs.parquet and summary.csv.
+    A campaign file whose max_time was raised takes its runs that ended not at rest further and
+    keeps those at rest (so may a changed solver.tolerance for unfinished runs); any other edit is
+    refused without --overwrite. Writes one run folder per (mixture, replica) in OUT, runs.csv, runs.parquet and summary.csv.
     Exit status 1 when some runs failed (their errors are in runs.csv and their folders), 130
     when interrupted (Ctrl-C; finished runs and checkpoints are kept).
     """

@@ -71,10 +71,11 @@ from granpack.interrupt import Interrupt
 from granpack.progress import Lines, Notes, SettlingProgress, progress_mode
 from granpack.rotations import random_quaternions
 from granpack.run_record import Clock, RunRecord, timeline_csv
-from granpack.settling import STATUS_AT_REST, STATUS_NOT_AT_REST, Settling
+from granpack.settling import STATUS_AT_REST, STATUS_NOT_AT_REST, Settling, settling_policy
 from granpack.state import ParticleState
 
-__all__ = ["run_packing", "initial_state", "deposit_order", "STATUS_AT_REST", "STATUS_NOT_AT_REST"]
+__all__ = ["run_packing", "initial_state", "deposit_order", "carries_on", "continued_settings", "STATUS_AT_REST",
+           "STATUS_NOT_AT_REST"]
 
 
 def deposit_order(state: ParticleState) -> dict:
@@ -176,33 +177,91 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture, source: str
     return state, saved.contacts, record, changed
 
 
-def _go_on_from_final(out_dir: Path, config: RunConfig, note: Notes) -> None:
-    """Take further a run of ``out_dir`` that ended not at rest, when ``config`` differs from its
-    own only in :data:`~granpack.config.CONTINUABLE_SETTINGS`: its final state (which carries the
-    run's record) becomes its checkpoint, and its summary and what was made from its final state
-    (:data:`~granpack.io.run_folder.DERIVED_FILES`, figures, exports) go; touches nothing when
-    ``out_dir`` holds no such run (:func:`~granpack.io.run_folder.claim_folder` then judges it).
+#: how a finished run carries on under a config that changes its :data:`~granpack.config.CONTINUABLE_SETTINGS`
+#: (:func:`_finished_run_carrying_on`): it goes on from its final state, or it is that config's run already
+GO_ON, SAME_RUN = "go on", "same run"
+
+
+def _saved_config(out_dir: Path) -> str:
+    """The resolved config a run folder was last run with (empty if there is none)."""
+    path = out_dir / CONFIG_FILE
+    return path.read_text(encoding="utf-8") if path.is_file() else ""
+
+
+def _finished_run_carrying_on(out_dir: Path, config: RunConfig) -> tuple[str, dict[str, tuple], float] | None:
+    """How the finished run of ``out_dir`` carries on under ``config``, whose settings differ from
+    its own only in :data:`~granpack.config.CONTINUABLE_SETTINGS`: :data:`GO_ON` for a run that
+    ended not at rest given a cap beyond its end, :data:`SAME_RUN` for one that came to rest given
+    another cap only, not before its end (the run would have stopped at the same step); with the
+    settings changed, ``{key: (run's, given)}``, and the run's end, sqrt(d/g). None when ``out_dir``
+    holds a checkpoint, no finished run, or one of ``config`` or of other settings
+    (:func:`~granpack.io.run_folder.claim_folder` judges those).
 
     Raises:
-        InputError: the run came to rest; ``equilibrium.max_time`` is not beyond its end; its
-            final state holds no record (written by an older granpack).
+        InputError: a run at rest given another tolerance or an earlier cap; a run not at rest
+            given a cap not beyond its end.
     """
-    final, summary_path = out_dir / FINAL_FILE, out_dir / SUMMARY_FILE
-    if not (final.is_file() and summary_path.is_file()) or (out_dir / CHECKPOINT_FILE).is_file():
-        return
-    meta = read_packing(final).metadata
-    changed = continued_settings(meta.get("config"), config)
+    summary_path = out_dir / SUMMARY_FILE
+    if not ((out_dir / FINAL_FILE).is_file() and summary_path.is_file()) or (out_dir / CHECKPOINT_FILE).is_file():
+        return None
+    changed = continued_settings(_saved_config(out_dir), config)
     if not changed:
-        return
+        return None
     summary = read_json(summary_path)
-    end = float(meta.get("time", summary.get("simulated_time", math.nan)))
-    if summary.get("status") != STATUS_NOT_AT_REST:
-        raise InputError(f"{out_dir}: holds a run that came to rest at t = {end:.6g} sqrt(d/g), nothing to go on "
-                         f"with ({_changes(changed)}): --overwrite replaces it, or choose another --out folder")
-    if not config.equilibrium.max_time > end:
+    end, steps, max_steps = float(summary["simulated_time"]), int(summary["steps"]), settling_policy(config).max_steps
+    if summary.get("status") == STATUS_NOT_AT_REST:
+        if max_steps > steps:
+            return GO_ON, changed, end
         raise InputError(f"equilibrium.max_time = {config.equilibrium.max_time:g}: the run in {out_dir} ended not at "
                          f"rest at t = {end:.6g} sqrt(d/g); set it beyond that to take the run further")
-    if "counters" not in meta:
+    if set(changed) == {"equilibrium.max_time"} and max_steps >= steps:
+        return SAME_RUN, changed, end
+    raise InputError(f"{out_dir}: holds a run that came to rest at t = {end:.6g} sqrt(d/g), which is not the run "
+                     f"of {_changes(changed)}: --overwrite replaces it, or choose another --out folder")
+
+
+def carries_on(out_dir: str | os.PathLike, config: RunConfig) -> bool:
+    """Whether ``run_packing(config, out_dir, resume=True)`` takes the run in ``out_dir`` (a
+    checkpoint or a finished run) on as ``config``'s: of the same settings, or of other
+    :data:`~granpack.config.CONTINUABLE_SETTINGS` only, from a checkpoint or as
+    :func:`_finished_run_carrying_on` allows; a campaign keeps such runs."""
+    out_dir = Path(out_dir)
+    checkpoint = (out_dir / CHECKPOINT_FILE).is_file()
+    finished = (out_dir / FINAL_FILE).is_file() and (out_dir / SUMMARY_FILE).is_file()
+    changed = continued_settings(_saved_config(out_dir), config)
+    if changed is None or not (checkpoint or finished):
+        return False
+    if checkpoint or not changed:
+        return True
+    try:
+        return _finished_run_carrying_on(out_dir, config) is not None
+    except InputError:
+        return False
+
+
+def _go_on_from_final(out_dir: Path, config: RunConfig, note: Notes) -> None:
+    """Carry on the finished run of ``out_dir`` under ``config`` (:func:`_finished_run_carrying_on`):
+    a run that ended not at rest goes on, its final state (which carries the run's record) made its
+    checkpoint, its summary and what was made from its final state
+    (:data:`~granpack.io.run_folder.DERIVED_FILES`, figures, exports) removed; a run at rest that is
+    ``config``'s run too gets ``config`` as its ``config.toml`` (and is then returned as it is).
+    Touches nothing when neither applies.
+
+    Raises:
+        InputError: :func:`_finished_run_carrying_on` refuses; the final state holds no record
+            (written by an older granpack).
+    """
+    carrying = _finished_run_carrying_on(out_dir, config)
+    if carrying is None:
+        return
+    kind, changed, end = carrying
+    if kind == SAME_RUN:
+        write_text_atomic(out_dir / CONFIG_FILE, config.to_toml())
+        note(f"{out_dir} holds a run that came to rest at t = {end:.6g} sqrt(d/g), before either cap "
+             f"({_changes(changed)}): it is this config's run too")
+        return
+    final = out_dir / FINAL_FILE
+    if "counters" not in read_packing(final).metadata:
         raise InputError(f"{final}: holds no run record to go on from (written by an older granpack): replace the "
                          "run with --overwrite")
     os.replace(final, out_dir / CHECKPOINT_FILE)

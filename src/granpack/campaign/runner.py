@@ -8,6 +8,9 @@ Each task runs :func:`granpack.simulation.run_packing` then
 - only analyses a run whose simulation completed (``summary.json`` and ``final.gsd`` present);
 - resumes a run from its checkpoint when it has one, else starts it afresh; the interrupted runs
   start before the others, then the longest first;
+- carries on a run whose folder was made for a config that differs from its own only in the
+  settings a resumed run may change (:data:`granpack.config.CONTINUABLE_SETTINGS`): with a later
+  ``max_time`` a run that ended not at rest goes on from its final state and one at rest is kept;
 - starts afresh a run whose folder was made for another config (its old outputs are removed);
 - runs only the mixtures asked for, if any (``mixtures``: shell patterns of their names), so that
   machines without a Dask cluster in common can share a campaign, each taking its own mixtures
@@ -147,6 +150,9 @@ def run_task(run: RunSpec, out_dir: str) -> dict:
                 action = "analysed"
             elif any(run_dir.glob(_CHECKPOINT_GLOB)):
                 action = "resumed"
+        elif _carries_on(run_dir, run):
+            write_task(run_dir, run)
+            action = "resumed"
         else:
             _clear_outputs(run_dir)
             write_task(run_dir, run)
@@ -245,11 +251,20 @@ def estimated_cost(run: RunSpec) -> int:
     return int(run.config.n_particles * run.config.equilibrium.max_time)
 
 
+def _carries_on(run_dir: Path, run: RunSpec) -> bool:
+    """Whether the work in ``run_dir``, made for another config of the run, carries on under
+    ``run``'s: the two differ only in settings a resumed run may change
+    (:func:`granpack.simulation.carries_on`: a later cap, a finer tolerance)."""
+    from granpack.simulation import carries_on
+
+    return read_task(run_dir) is not None and carries_on(run_dir, run.config)
+
+
 def has_checkpoint(out_dir: Path, run: RunSpec) -> bool:
     """Whether ``run`` was interrupted in ``out_dir``: a checkpoint in a folder made for this
-    very run config (a task there resumes from it)."""
+    very run config, or one it carries on from (a task there resumes from it)."""
     run_dir = Path(out_dir) / run.folder
-    return any(run_dir.glob(_CHECKPOINT_GLOB)) and task_matches(run_dir, run)
+    return any(run_dir.glob(_CHECKPOINT_GLOB)) and (task_matches(run_dir, run) or _carries_on(run_dir, run))
 
 
 def run_order(runs: list[RunSpec], out_dir: Path) -> list[RunSpec]:
@@ -381,12 +396,14 @@ def selected_runs(spec: CampaignSpec, mixtures: list[str] | None) -> tuple[RunSp
 
 def changed_runs(out_dir: Path, runs: Iterable[RunSpec]) -> list[RunSpec]:
     """The runs whose folders in ``out_dir`` hold the work (outputs or a checkpoint) of another
-    config than theirs: what running them would replace."""
+    config than theirs, which does not carry on under theirs (:func:`_carries_on`): what running
+    them would replace."""
     changed = []
     for run in runs:
         run_dir = out_dir / run.folder
         work = [name for name in (ANALYSIS_FILE, SUMMARY_FILE, FINAL_FILE) if (run_dir / name).is_file()]
-        if (work or any(run_dir.glob(_CHECKPOINT_GLOB))) and read_task(run_dir) is not None and not task_matches(run_dir, run):
+        if ((work or any(run_dir.glob(_CHECKPOINT_GLOB))) and read_task(run_dir) is not None
+                and not task_matches(run_dir, run) and not _carries_on(run_dir, run)):
             changed.append(run)
     return changed
 
