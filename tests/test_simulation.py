@@ -127,6 +127,11 @@ def test_timeline_records_every_check_and_the_end_game(settled):
     assert all(r["nlgs_tolerance"] == config.solver.settling_tolerance for r in rows[: fine + 1])
     assert all(r["nlgs_tolerance"] == config.solver.tolerance for r in rows[fine + 1:])
     assert rows[-1]["wall_seconds"] > 0 and rows[-1]["cpu_seconds"] > 0
+    # the last check is the final state's: its overlaps, summed and largest, are those of final.gsd
+    gaps = read_packing(out / "final.gsd").contacts.gap
+    assert rows[-1]["overlap_sum"] == pytest.approx(float(np.clip(-gaps, 0, None).sum()), rel=1e-5)
+    assert rows[-1]["max_overlap"] == pytest.approx(float(-gaps.min()), rel=1e-5) and rows[-1]["max_overlap"] > 0
+    assert all(r["max_overlap"] <= r["overlap_sum"] <= r["max_overlap"] * r["contact_points"] for r in rows)
 
 
 def test_timeline_energy_budget_has_no_source_but_the_corrections(settled):
@@ -372,9 +377,12 @@ def test_a_checkpoint_resumes_with_a_finer_tolerance(tmp_path, monkeypatch, caps
     assert summary["simulated_time"] == pytest.approx(1.0)
 
 
-def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_path, monkeypatch):
-    """A checkpoint whose timeline rows lack ``potential_energy_change`` (and its running total)
-    resumes: those rows, and the first row after them, get NaN for it; later rows have it."""
+@pytest.mark.parametrize("missing", [("overlap_sum",), ("overlap_sum", "potential_energy_change")])
+def test_a_checkpoint_written_before_the_newer_timeline_columns_resumes(tmp_path, monkeypatch, missing):
+    """A checkpoint whose timeline rows lack ``overlap_sum`` (and, older still,
+    ``potential_energy_change`` and its running total) resumes: those rows get NaN for what they
+    lack, and so does the first row after them for the potential energy's change (it has no
+    previous total); later rows have both."""
     import csv
 
     from granpack.io.gsd import write_packing
@@ -383,17 +391,24 @@ def test_a_checkpoint_written_before_the_potential_energy_column_resumes(tmp_pat
     killed_run(config, tmp_path, monkeypatch, at_solve=250)
     saved = read_packing(tmp_path / "checkpoint.gsd")
     counters = dict(saved.metadata["counters"])
-    column = TIMELINE_COLUMNS.index("potential_energy_change")
-    counters["timeline"] = [row[:column] + row[column + 1:-1] for row in counters["timeline"]]
+    gone = {TIMELINE_COLUMNS.index(name) for name in missing}
+    if "potential_energy_change" in missing:
+        gone.add(len(TIMELINE_COLUMNS) + 7)  # its running total, the last of the row
+    counters["timeline"] = [[v for k, v in enumerate(row) if k not in gone] for row in counters["timeline"]]
     old_rows = len(counters["timeline"])
     assert old_rows > 0
     write_packing(tmp_path / "checkpoint.gsd", replace(saved, metadata={**saved.metadata, "counters": counters}))
 
     run_packing(config, tmp_path, resume=True, progress=False)
     with (tmp_path / simulation.TIMELINE_FILE).open(newline="") as f:
-        changes = [float(row["potential_energy_change"]) for row in csv.DictReader(f)]
-    assert all(math.isnan(v) for v in changes[: old_rows + 1])
-    assert len(changes) > old_rows + 1 and not any(math.isnan(v) for v in changes[old_rows + 1:])
+        rows = list(csv.DictReader(f))
+    assert len(rows) > old_rows + 1
+    sums = [float(row["overlap_sum"]) for row in rows]
+    assert all(math.isnan(v) for v in sums[:old_rows]) and all(v >= float(row["max_overlap"]) for v, row in
+                                                                 zip(sums[old_rows:], rows[old_rows:]))
+    changes = [float(row["potential_energy_change"]) for row in rows]
+    first_known = old_rows + 1 if "potential_energy_change" in missing else 1
+    assert all(math.isnan(v) for v in changes[:first_known]) and not any(math.isnan(v) for v in changes[first_known:])
 
 
 def test_resume_refuses_a_checkpoint_of_another_config(tmp_path, monkeypatch, capsys):

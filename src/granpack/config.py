@@ -599,8 +599,9 @@ class SolverConfig(_Model):
     tolerance: _Number = _setting(1e-4, gt=0, description="NLGS convergence tolerance (LMGC90's 'Quad' norm) "
                                   "near rest. Rule of thumb: at most 1e-3, or the equilibrium criteria are "
                                   "not met; 1e-5 for a pile that keeps missing the force criterion near rest "
-                                  "while its grains hardly move (a tall graded column of scans sank into its "
-                                  "overlaps with 1e-4: docs, design notes). May be changed for a run that goes on "
+                                  "while its grains hardly move and the overlaps' sum grows (timeline.csv's "
+                                  "overlap_sum: a tall graded column of scans sank into its overlaps with 1e-4; "
+                                  "docs, design notes). May be changed for a run that goes on "
                                   "(granpack run --resume).")
     settling_tolerance: _Number = _setting(
         1e-3, gt=0, description="NLGS tolerance while the pile is far from rest (kinetic criterion above "

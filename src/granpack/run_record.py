@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 import time
+
+import numpy as np
 from dataclasses import dataclass, field, fields
 
 from granpack.contact import ContactSet
@@ -21,20 +23,25 @@ from granpack.state import ParticleState
 __all__ = ["TIMELINE_COLUMNS", "SolverTotals", "Milestones", "Clock", "RunRecord", "timeline_row", "timeline_csv"]
 
 #: columns of ``timeline.csv``, one row per equilibrium check: counts and sums over the interval
-#: since the previous check, figures of the equilibrium test at the check
+#: since the previous check, figures of the equilibrium test at the check; ``overlap_sum`` is the
+#: sum of the contact points' overlaps, d, which grows while a pile sinks into its overlaps and
+#: stays put while it rearranges (the largest overlap stays at the recovery's slop either way)
 TIMELINE_COLUMNS = (
     "time", "step", "kinetic_energy_total", "potential_energy_change", "kinetic_criterion", "max_net_force", "max_net_torque",
     "wall_force_over_weight", "nlgs_tolerance", "mean_sweeps", "max_sweeps", "unconverged_steps",
     "corrected_steps", "correction_sweeps", "correction_energy", "damped_energy", "contacts", "contact_points", "max_overlap",
-    "wall_seconds", "cpu_seconds",
+    "overlap_sum", "wall_seconds", "cpu_seconds",
 )
 #: the running totals kept after the columns in each row, from which the next row's interval sums
 #: come: fields of :class:`SolverTotals`, then the potential energy
 _TOTALS = ("solves", "iterations_total", "unconverged_steps", "correction_steps", "correction_iterations",
            "correction_energy", "damped_energy", "potential_energy")
 _POTENTIAL_COLUMN = TIMELINE_COLUMNS.index("potential_energy_change")
-#: length of a timeline row in checkpoints written before the potential energy was recorded
-_ROW_WITHOUT_POTENTIAL = len(TIMELINE_COLUMNS) + len(_TOTALS) - 2
+_OVERLAP_SUM_COLUMN = TIMELINE_COLUMNS.index("overlap_sum")
+#: length of a timeline row in checkpoints written before the overlaps' sum was recorded ...
+_ROW_WITHOUT_OVERLAP_SUM = len(TIMELINE_COLUMNS) + len(_TOTALS) - 1
+#: ... and before the potential energy was
+_ROW_WITHOUT_POTENTIAL = _ROW_WITHOUT_OVERLAP_SUM - 2
 
 
 @dataclass
@@ -154,11 +161,14 @@ class RunRecord:
 
 
 def _current_layout(row: list) -> list:
-    """A checkpoint's timeline row in today's layout: a row written before ``potential_energy_change``
-    existed gets NaN for it and for its running total, so that such a run resumes."""
-    if len(row) != _ROW_WITHOUT_POTENTIAL:
-        return row
-    return [*row[:_POTENTIAL_COLUMN], math.nan, *row[_POTENTIAL_COLUMN:], math.nan]
+    """A checkpoint's timeline row in today's layout, so that a run of an older version resumes:
+    a row written before ``potential_energy_change`` existed gets NaN for it and for its running
+    total, one written before ``overlap_sum`` NaN for it."""
+    if len(row) == _ROW_WITHOUT_POTENTIAL:
+        row = [*row[:_POTENTIAL_COLUMN], math.nan, *row[_POTENTIAL_COLUMN:], math.nan]
+    if len(row) == _ROW_WITHOUT_OVERLAP_SUM:
+        row = [*row[:_OVERLAP_SUM_COLUMN], math.nan, *row[_OVERLAP_SUM_COLUMN:]]
+    return row
 
 
 def timeline_row(record: RunRecord, state: ParticleState, contacts: ContactSet, report: EquilibriumReport,
@@ -170,12 +180,13 @@ def timeline_row(record: RunRecord, state: ParticleState, contacts: ContactSet, 
     # the first check has no previous potential energy: its change is NaN
     previous = record.timeline[-1][len(TIMELINE_COLUMNS):] if record.timeline else (0,) * (len(totals) - 1) + (math.nan,)
     d = [a - b for a, b in zip(totals, previous)]
-    gaps = contacts.gap
+    overlaps = np.maximum(-contacts.gap, 0.0)
     row = [
         state.time, m.step, kinetic_energy(state), d[7], report.kinetic_energy, report.max_net_force,
         report.max_net_torque, report.wall_force_over_weight, tolerance, d[1] / max(d[0], 1), t.interval_max_sweeps,
         d[2], d[3], d[4] / max(d[0], 1), d[5], d[6], contacts.n_manifolds, contacts.n_points,
-        float(max(0.0, -gaps.min())) if len(gaps) else 0.0, record.clock.wall_seconds, record.clock.cpu_seconds, *totals,
+        float(overlaps.max(initial=0.0)), float(overlaps.sum()), record.clock.wall_seconds, record.clock.cpu_seconds,
+        *totals,
     ]
     t.interval_max_sweeps = 0
     return row
