@@ -472,6 +472,8 @@ def test_cli_run_with_seed_and_bad_inputs(tmp_path, capsys):
     assert info.value.code == 0
     printed = capsys.readouterr().out
     assert "not at rest after 0.50" in printed and "criteria not met at the end: " in printed
+    assert (f"to go on, raise its equilibrium.max_time and run: granpack run {config} --out {tmp_path / 'r'} --seed 8 "
+            "--resume") in printed
     assert load_config(tmp_path / "r" / "config.toml").seed == 8
     for argv in (["run", str(tmp_path / "missing.toml"), "--out", str(tmp_path / "x")],
                  ["run", str(config), "--out", str(tmp_path / "y"), "--seed", "-1"]):

@@ -395,7 +395,9 @@ def _run_and_report(config, out: Path, *, resume: bool, overwrite: bool, again: 
     if failing:
         from granpack.io.run_folder import SUMMARY_FILE
 
-        typer.echo(f"criteria not met at the end: {', '.join(failing)} (values in {out / SUMMARY_FILE}, 'equilibrium')")
+        go_on = f"; to go on, raise its equilibrium.max_time and run: {again} --resume" if source else ""
+        typer.echo(f"criteria not met at the end: {', '.join(failing)} (values in {out / SUMMARY_FILE}, 'equilibrium')"
+                   + go_on)
     return summary
 
 
