@@ -183,9 +183,18 @@ GO_ON, SAME_RUN = "go on", "same run"
 
 
 def _saved_config(out_dir: Path) -> str:
-    """The resolved config a run folder was last run with (empty if there is none)."""
-    path = out_dir / CONFIG_FILE
-    return path.read_text(encoding="utf-8") if path.is_file() else ""
+    """The resolved config a run folder was last run with: its ``config.toml``, or its final
+    state's where it has none (a campaign's kept run: only the run's own results are kept); empty
+    if there is neither."""
+    path, final = out_dir / CONFIG_FILE, out_dir / FINAL_FILE
+    if path.is_file():
+        return path.read_text(encoding="utf-8")
+    if not final.is_file():
+        return ""
+    try:
+        return read_packing(final).metadata.get("config") or ""
+    except InputError:
+        return ""
 
 
 def _finished_run_carrying_on(out_dir: Path, config: RunConfig) -> tuple[str, dict[str, tuple], float] | None:
