@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, field, fields
 
 import numpy as np
-from dataclasses import dataclass, field, fields
 
 from granpack.contact import ContactSet
 from granpack.equilibrium import EquilibriumReport
