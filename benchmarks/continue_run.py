@@ -4,8 +4,8 @@ Usage::
 
     python benchmarks/continue_run.py RUN_DIR OUT_DIR --max-time T [--set SECTION.KEY=VALUE ...]
 
-``granpack run --resume`` continues only a checkpoint, and only with the settings it was made
-with; this continues ``RUN_DIR/final.gsd`` (a run that ended at rest or at its cap) with
+``granpack run --resume`` continues a checkpoint, or a run that ended not at rest, under its own
+settings but for a later cap or another NLGS tolerance, and writes into the run's folder; this continues ``RUN_DIR/final.gsd`` (a run that ended at rest or at its cap) with
 ``RUN_DIR/config.toml`` changed by ``--set`` (``container.wall_friction=0.5``,
 ``end_game.mode=none``, ...) up to ``equilibrium.max_time = T``. The settling starts in the
 phase the run ended in: the end game's damping on (where the config has it) and the fine NLGS
