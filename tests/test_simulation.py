@@ -16,6 +16,7 @@ from granpack.analysis.report import analyze_run
 from granpack.cli import main
 from granpack.config import load_config, load_config_dict
 from granpack.equilibrium import check_equilibrium
+from granpack.errors import InputError
 from granpack.io.gsd import read_packing
 from granpack.io.json import read_json, to_jsonable
 from granpack.mixture import Mixture
@@ -375,6 +376,31 @@ def test_a_checkpoint_resumes_with_a_finer_tolerance(tmp_path, monkeypatch, caps
     assert "resuming from t = 0.5 sqrt(d/g) (step 100)" in err and "with solver.tolerance = 1e-05 (was 0.0001)" in err
     assert load_config(tmp_path / "config.toml").solver.tolerance == 1e-5
     assert summary["simulated_time"] == pytest.approx(1.0)
+
+
+def test_a_checkpoint_resumed_with_its_own_time_as_the_cap_ends_there_and_an_earlier_cap_is_refused(
+        tmp_path, monkeypatch, capsys):
+    """A killed run (checkpoint at t = 0.5) resumed with ``equilibrium.max_time = 0.25`` is refused
+    in one line, the folder unchanged; with 0.5 it ends at the checkpoint, not at rest, its final
+    state the checkpoint's."""
+    config = sphere_config(n=20, max_time=1.0)
+    killed_run(config, tmp_path, monkeypatch, at_solve=150)
+    checkpoint = read_packing(tmp_path / "checkpoint.gsd")
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()}
+
+    def capped(max_time):
+        return config.model_copy(update={"equilibrium": config.equilibrium.model_copy(update={"max_time": max_time})})
+
+    with pytest.raises(InputError, match=r"equilibrium.max_time = 0.25: the checkpoint in .* is at t = 0.5 sqrt"):
+        run_packing(capped(0.25), tmp_path, resume=True, progress=False)
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir() if p.is_file()} == before
+
+    summary = run_packing(capped(0.5), tmp_path, resume=True, progress=False)
+    assert summary["status"] == STATUS_NOT_AT_REST and summary["steps"] == 100
+    assert summary["simulated_time"] == pytest.approx(0.5)
+    final = read_packing(tmp_path / "final.gsd")
+    np.testing.assert_array_equal(final.state.position, checkpoint.state.position)
+    assert not (tmp_path / "checkpoint.gsd").exists()
 
 
 @pytest.mark.parametrize("missing", [("overlap_sum",), ("overlap_sum", "potential_energy_change")])

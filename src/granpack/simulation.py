@@ -156,7 +156,9 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture, source: str
                  ) -> tuple[ParticleState, ContactSet, RunRecord, dict[str, tuple]] | None:
     """State, warm contacts and record of the checkpoint in ``out_dir``, and the settings it goes on
     under with other values (:func:`continued_settings`), or None if there is none; a checkpoint of
-    other settings is refused, naming them (``source``: where ``config`` came from)."""
+    other settings is refused, naming them (``source``: where ``config`` came from), and one past
+    the cap given (a run does not end before its last checkpoint; at the checkpoint's time it ends
+    there, not at rest, which is how a run is stopped where it stands and kept)."""
     path = out_dir / CHECKPOINT_FILE
     if not path.is_file():
         return None
@@ -174,6 +176,10 @@ def _resume_from(out_dir: Path, config: RunConfig, mixture: Mixture, source: str
         record = RunRecord.from_dict(meta["counters"])
     except (KeyError, TypeError) as exc:
         raise InputError(f"{path}: not a checkpoint this version reads ({exc}); replace the run with --overwrite") from None
+    if settling_policy(config).max_steps < record.milestones.step:
+        raise InputError(f"equilibrium.max_time = {config.equilibrium.max_time:g}: the checkpoint in {out_dir} is at "
+                         f"t = {state.time:.6g} sqrt(d/g); set it to that (the run then ends there, not at rest) or "
+                         "beyond")
     return state, saved.contacts, record, changed
 
 
