@@ -494,3 +494,21 @@ def test_a_resumed_lmgc90_run_keeps_its_timeline_to_the_saved_step_and_turns_its
     start, counters = side_by_side._resume_state(tmp_path, {"position": np.ones((1, 3)), "kind": np.zeros(1)})
     np.testing.assert_array_equal(counters["world_velocity"], [[0.1, 0.2, 0.3, 0.0, 2.0, 0.0]])
     assert counters["step"] == 100 and np.array_equal(start["position"], np.zeros((1, 3)))
+
+
+def test_the_burst_bound_charges_each_burst_row_its_sweeps_over_the_late_settling_ones():
+    """A hand-built timeline: two settling rows (10 sweeps at kinetic 1e-4, the late settling
+    level), one row near rest at rest (kinetic 1e-7) and two bursts (kinetic 1e-3) at 40 and 20
+    sweeps, 10 CPU s each: the bound saves 10 (1 - 10/40) + 10 (1 - 10/20) = 12.5 s of 50."""
+    import pandas as pd
+
+    bursts = _script("near_rest_bursts")
+    timeline = pd.DataFrame({
+        "nlgs_tolerance": [1e-3, 1e-3, 1e-4, 1e-4, 1e-4],
+        "kinetic_criterion": [1e-2, 1e-4, 1e-7, 1e-3, 1e-3],
+        "mean_sweeps": [200.0, 10.0, 12.0, 40.0, 20.0],
+        "cpu_seconds": [10.0, 20.0, 30.0, 40.0, 50.0],
+    })
+    figures = bursts.run_figures(timeline, 1e-4, 1e-4)
+    assert figures == {"cpu": 50.0, "near_rest": 30.0, "bursts": 20.0, "saving": pytest.approx(12.5)}
+    assert bursts.run_figures(timeline.assign(nlgs_tolerance=1e-3), 1e-4, 1e-4) is None
